@@ -1,0 +1,27 @@
+//! Real-time modal synthesis: the banks that turn modes into sound, and their excitations.
+//!
+//! Where it sits: after [`crate::modes`] (which culls a [`ModeSet`](crate::modes::ModeSet) into
+//! [`PlayableModes`](crate::modes::PlayableModes)); before the audio output, the WAV writer of
+//! the CLI, and later the real-time engine and the plugin.
+//!
+//! - [`OscillatorBank`]: modes as free damped sines, struck; the fast path (f32, SIMD, exact
+//!   re-anchoring every 64 samples so it never drifts).
+//! - [`BiquadBank`]: modes as resonant filters (parallel x cascade), driven by any force signal:
+//!   strikes, scraping, rolling.
+//! - [`excitation`]: impulse, mallet contact pulse, noise.
+//! - [`render`]: offline rendering of one strike through either bank, in blocks.
+//! - [`simd`]: the lane abstraction and run-time CPU dispatch shared by both banks.
+//!
+//! Every bank follows one lifecycle: construction allocates; `strike`, `render`/`process` and
+//! `reset` never allocate, lock, block or log, so they may run on an audio thread.
+
+pub mod biquad;
+pub mod excitation;
+pub mod oscillator;
+pub mod render;
+pub mod simd;
+
+pub use biquad::{BiquadBank, BiquadCoeffs, BiquadError};
+pub use excitation::{Excitation, ExcitationError, ForcePulse, NoiseForce};
+pub use oscillator::{OscillatorBank, StrikeError};
+pub use simd::SimdBackend;
