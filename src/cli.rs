@@ -42,7 +42,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "OUT.wav", default_value = "impact.wav")]
     pub out: PathBuf,
     /// Length in seconds [default: until the sound has decayed by 60 dB, 0.5 to 30 s].
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     /// Sample rate in Hz (8000 to 384000).
     #[arg(long, value_name = "HZ", default_value_t = 48000)]
@@ -51,13 +51,23 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = BankArg::Oscillator)]
     pub bank: BankArg,
     /// Mallet contact time in seconds: 0 is an ideal impulse, longer is softer (up to 0.1).
-    #[arg(long, value_name = "SECONDS", default_value_t = 0.0)]
+    #[arg(
+        long,
+        value_name = "SECONDS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub hardness: f64,
     /// Strike velocity, a force multiplier from 0 to 100 (1 = the modes' own gains).
-    #[arg(long, value_name = "V", default_value_t = 1.0)]
+    #[arg(
+        long,
+        value_name = "V",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     pub velocity: f64,
     /// Scrape the object with noise for this many seconds instead of striking it (biquad bank).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub scrape: Option<f64>,
     /// Bits per sample: 32 (float), 24 or 16 (integer).
     #[arg(long, value_name = "BITS", default_value_t = 32)]

@@ -8,7 +8,17 @@ fn main() -> ExitCode {
     std::panic::set_hook(Box::new(|info| {
         eprintln!("error: internal error (please report): {info}");
     }));
-    let cli = modalforge::cli::Cli::parse();
+    let cli = match modalforge::cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) => {
+            // clap's own errors span several lines; keep the first, point at --help.
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            eprintln!("{first} (see modalforge --help)");
+            return ExitCode::from(2);
+        }
+    };
     match modalforge::cli::run(cli) {
         Ok(text) => {
             println!("{text}");

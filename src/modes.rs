@@ -315,7 +315,7 @@ impl ModeSet {
             kept.source_index.push(i);
         }
         report.kept = kept.len();
-        if kept.len() == 0 {
+        if kept.is_empty() {
             return Err(ModeError::NothingPlayable(report));
         }
         Ok((kept, report))

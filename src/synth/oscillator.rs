@@ -16,6 +16,7 @@
 //! Lifecycle (fundsp style): [`OscillatorBank::new`] allocates; [`OscillatorBank::strike`],
 //! [`OscillatorBank::render`] and [`OscillatorBank::reset`] never allocate, lock or block.
 
+mod anchor;
 mod kernel;
 
 use super::excitation::{Excitation, ExcitationError};
@@ -30,10 +31,6 @@ pub const ANCHOR_SAMPLES: usize = 64;
 
 /// Largest accepted strike velocity (a force multiplier; 1 = the modes' own gains).
 pub const MAX_VELOCITY: f64 = 100.0;
-
-/// Complex amplitudes below this magnitude are set to exactly zero at an anchor, so a decayed
-/// mode never reaches f32 denormals (1.2e-38) and costs nothing to keep silent.
-const SILENCE_FLOOR: f64 = 1e-30;
 
 /// What is wrong with a strike.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
@@ -67,14 +64,10 @@ pub struct OscillatorBank {
     dy: Vec<f32>,
     kappa: Vec<f32>,
     c2: Vec<f32>,
-    // Exact state: complex amplitude of each mode at the current anchor.
-    z: Vec<Complex64>,
+    // Exact state by slot: complex amplitude at the current anchor, and the constants to move it.
+    anchors: anchor::Anchors,
     // lambda_i = -d_i + i 2 pi f_i in rad/s.
     lambda: Vec<Complex64>,
-    // e^(lambda ANCHOR_SAMPLES / fs): one anchor interval.
-    anchor_step: Vec<Complex64>,
-    // Maps a complex amplitude to the kernel's second state variable (see `with_backend`).
-    back: Vec<Complex64>,
     gain: Vec<f64>,
     since_anchor: usize,
     acc: Vec<f32>,
@@ -105,15 +98,14 @@ impl OscillatorBank {
         let mut kappa = vec![0f32; padded];
         let mut c2 = vec![0f32; padded];
         let mut lambda = Vec::with_capacity(len);
-        let mut anchor_step = Vec::with_capacity(len);
-        let mut back = Vec::with_capacity(len);
-        for i in 0..len {
+        let mut anchors = anchor::Anchors::new(padded);
+        for (i, &is_mirrored) in mirrored.iter().enumerate() {
             let (f, d) = (modes.freq_hz()[i], modes.decay_per_s()[i]);
             let l = Complex64::new(-d, TAU * f);
             let r_minus_1 = (-d / fs).exp_m1();
             let r = 1.0 + r_minus_1;
             // The recurrence runs at w, or mirrored at pi - w; both kept in (0, pi/2].
-            let (k, w) = if mirrored[i] {
+            let (k, w) = if is_mirrored {
                 next_high += 1;
                 (next_high - 1, TAU * (0.5 * fs - f) / fs)
             } else {
@@ -125,15 +117,17 @@ impl OscillatorBank {
             kappa[k] = (r_minus_1 * r_minus_1 + 4.0 * r * (0.5 * w).sin().powi(2)) as f32;
             c2[k] = (r * r) as f32;
             lambda.push(l);
-            anchor_step.push((l * (ANCHOR_SAMPLES as f64 / fs)).exp());
+            let step = (l * (ANCHOR_SAMPLES as f64 / fs)).exp();
+            (anchors.step_re[k], anchors.step_im[k]) = (step.re, step.im);
             // Maps a complex amplitude to the kernel's second state variable: y[n] - y[n-1]
             // (1 - e^(-lambda/fs)), or mirrored z[n] - z[n-1] = +-(y[n] + y[n-1])
             // (1 + e^(-lambda/fs) = -expm1(-lambda/fs + i pi), small near Nyquist).
-            back.push(if mirrored[i] {
+            let back = if is_mirrored {
                 -(-l / fs + Complex64::new(0.0, std::f64::consts::PI)).exp_m1_complex()
             } else {
                 -(-l / fs).exp_m1_complex()
-            });
+            };
+            (anchors.back_re[k], anchors.back_im[k]) = (back.re, back.im);
         }
         Self {
             backend,
@@ -145,10 +139,8 @@ impl OscillatorBank {
             dy: vec![0.0; padded],
             kappa,
             c2,
-            z: vec![Complex64::new(0.0, 0.0); len],
+            anchors,
             lambda,
-            anchor_step,
-            back,
             gain: modes.gain().to_vec(),
             since_anchor: 0,
             acc: vec![0.0; 2 * ANCHOR_SAMPLES * PAD],
@@ -179,7 +171,7 @@ impl OscillatorBank {
     pub fn reset(&mut self) {
         self.y.fill(0.0);
         self.dy.fill(0.0);
-        self.z.fill(Complex64::new(0.0, 0.0));
+        self.anchors.reset();
     }
 
     /// Strikes the object at the next sample to be rendered, with the modes' own gains.
@@ -226,14 +218,16 @@ impl OscillatorBank {
             1.0
         };
         self.y[k] += (sign * c.im) as f32;
-        self.dy[k] += (sign * (c * self.back[i]).im) as f32;
+        self.dy[k] += (sign * self.anchors.second_state(k, c)) as f32;
         // Exact state: referred back to the current anchor.
         let back = if self.since_anchor == 0 {
             Complex64::new(1.0, 0.0)
         } else {
             (-self.lambda[i] * (self.since_anchor as f64 / self.sample_rate_hz)).exp()
         };
-        self.z[i] += c * back;
+        let c = c * back;
+        self.anchors.z_re[k] += c.re;
+        self.anchors.z_im[k] += c.im;
     }
 
     /// Renders the next `out.len()` samples (overwriting `out`). Never allocates.
@@ -266,17 +260,9 @@ impl OscillatorBank {
 
     /// Moves the exact state one anchor interval on and restarts the f32 recurrences from it.
     fn advance_anchor(&mut self) {
-        for i in 0..self.len {
-            let mut z = self.z[i] * self.anchor_step[i];
-            if z.norm_sqr() < SILENCE_FLOOR * SILENCE_FLOOR {
-                z = Complex64::new(0.0, 0.0);
-            }
-            self.z[i] = z;
-            // Anchors fall on even samples (ANCHOR_SAMPLES is even): no mirror sign here.
-            let k = self.slot[i];
-            self.y[k] = z.im as f32;
-            self.dy[k] = (z * self.back[i]).im as f32;
-        }
+        // Anchors fall on even samples (ANCHOR_SAMPLES is even): no mirror sign here.
+        self.anchors
+            .advance(self.backend, &mut self.y, &mut self.dy);
         self.since_anchor = 0;
     }
 }

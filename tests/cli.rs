@@ -1,0 +1,297 @@
+//! The `modalforge` binary as a user runs it: WAV output checked against beam theory and the
+//! analytic damped sine, and every kind of bad input answered with one line and a non-zero exit.
+
+use std::f64::consts::TAU;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn modalforge(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_modalforge"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn read_wav(path: &Path) -> (hound::WavSpec, Vec<f32>) {
+    let mut r = hound::WavReader::open(path).expect("a readable WAV");
+    let spec = r.spec();
+    let samples = match spec.sample_format {
+        hound::SampleFormat::Float => r.samples::<f32>().map(|s| s.unwrap()).collect(),
+        hound::SampleFormat::Int => {
+            let scale = (1i64 << (spec.bits_per_sample - 1)) as f32;
+            r.samples::<i32>()
+                .map(|s| s.unwrap() as f32 / scale)
+                .collect()
+        }
+    };
+    (spec, samples)
+}
+
+/// Magnitude of the DFT of `x` at `f_hz` (Goertzel-style direct sum).
+fn dft_mag(x: &[f32], fs: f64, f_hz: f64) -> f64 {
+    let (mut re, mut im) = (0.0, 0.0);
+    for (n, &v) in x.iter().enumerate() {
+        let ph = TAU * f_hz * n as f64 / fs;
+        re += v as f64 * ph.cos();
+        im -= v as f64 * ph.sin();
+    }
+    (re * re + im * im).sqrt()
+}
+
+#[test]
+fn demo_render_rings_at_the_beam_theory_fundamental() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo.wav");
+    let o = modalforge(&["render", "--out", out.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["sample_rate_hz"], 48000);
+    let (spec, x) = read_wav(&out);
+    assert_eq!(
+        (spec.channels, spec.sample_rate, spec.bits_per_sample),
+        (1, 48000, 32)
+    );
+    // Normalised to -1 dBFS.
+    let peak = x.iter().fold(0f32, |p, v| p.max(v.abs()));
+    assert!((peak - 0.8913).abs() < 1e-3, "peak {peak}");
+    // Euler-Bernoulli: f1 = 4.7300^2 / (2 pi L^2) sqrt(E I / (rho A)) = 1012.6 Hz for the demo bar.
+    // Scan 950-1080 Hz over the first second (DFT resolution 1 Hz, scanned in 0.5 Hz steps).
+    let f1 = 4.730_040_745f64.powi(2) / (TAU * 0.32 * 0.32)
+        * (200e9 * 0.02f64.powi(2) / 12.0 / 7850.0).sqrt();
+    let first = &x[..48000];
+    let best = (0..260)
+        .map(|k| 950.0 + 0.5 * k as f64)
+        .max_by(|a, b| dft_mag(first, 48000.0, *a).total_cmp(&dft_mag(first, 48000.0, *b)))
+        .unwrap();
+    assert!(
+        (best - f1).abs() < 1.0,
+        "spectral peak {best} Hz vs beam theory {f1:.1} Hz"
+    );
+}
+
+#[test]
+fn a_mode_file_renders_the_analytic_damped_sine() {
+    let dir = tempfile::tempdir().unwrap();
+    let modes = dir.path().join("a440.json");
+    std::fs::write(
+        &modes,
+        r#"{"modes":[{"freq_hz":440,"decay_per_s":2,"gain":0.5}]}"#,
+    )
+    .unwrap();
+    for bank in ["oscillator", "biquad"] {
+        let out = dir.path().join(format!("{bank}.wav"));
+        let o = modalforge(&[
+            "render",
+            "--modes",
+            modes.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--seconds",
+            "1",
+            "--bank",
+            bank,
+            "--no-normalize",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (_, x) = read_wav(&out);
+        assert_eq!(x.len(), 48000);
+        // Away from the 10 ms fade-out the file is 0.5 e^(-2t) sin(2 pi 440 t) to f32 accuracy.
+        for (n, &v) in x[..47000].iter().enumerate() {
+            let t = n as f64 / 48000.0;
+            let want = 0.5 * (-2.0 * t).exp() * (TAU * 440.0 * t).sin();
+            assert!(
+                (v as f64 - want).abs() < 1e-5,
+                "{bank} sample {n}: {v} vs {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn soft_mallets_and_other_formats() {
+    let dir = tempfile::tempdir().unwrap();
+    let hard = dir.path().join("hard.wav");
+    let soft = dir.path().join("soft.wav");
+    let args = |out: &Path, hardness: &str| {
+        modalforge(&[
+            "render",
+            "--out",
+            out.to_str().unwrap(),
+            "--seconds",
+            "0.5",
+            "--hardness",
+            hardness,
+            "--no-normalize",
+            "--bits",
+            "24",
+        ])
+    };
+    assert!(args(&hard, "0.0002").status.success());
+    assert!(args(&soft, "0.004").status.success());
+    let (spec, h) = read_wav(&hard);
+    let (_, s) = read_wav(&soft);
+    assert_eq!(
+        (spec.bits_per_sample, spec.sample_format),
+        (24, hound::SampleFormat::Int)
+    );
+    // A 4 ms mallet passes the 1 kHz fundamental but cuts the 5.5 kHz third bending mode far more
+    // than a 0.2 ms one (|F| ~ 0.4 vs 0.99 at 5.5 kHz from the half-sine spectrum).
+    let third = 4.730_040_745f64.powi(2) * (10.995_607_838f64 / 4.730_040_745).powi(2)
+        / (TAU * 0.32 * 0.32)
+        * (200e9 * 0.02f64.powi(2) / 12.0 / 7850.0).sqrt();
+    let ratio =
+        |x: &[f32]| dft_mag(&x[..4800], 48000.0, third) / dft_mag(&x[..4800], 48000.0, 1012.6);
+    assert!(
+        ratio(&s) < 0.5 * ratio(&h),
+        "soft {} vs hard {}",
+        ratio(&s),
+        ratio(&h)
+    );
+    // A scrape through the biquad bank, 16-bit.
+    let scrape = dir.path().join("scrape.wav");
+    let o = modalforge(&[
+        "render",
+        "--out",
+        scrape.to_str().unwrap(),
+        "--bank",
+        "biquad",
+        "--scrape",
+        "0.3",
+        "--bits",
+        "16",
+        "--seconds",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (spec, x) = read_wav(&scrape);
+    assert_eq!(spec.bits_per_sample, 16);
+    assert!(x.iter().any(|v| v.abs() > 0.1));
+}
+
+#[test]
+fn bad_input_gets_one_line_and_a_non_zero_exit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_owned()
+    };
+    let out = dir.path().join("x.wav");
+    let out = out.to_str().unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![
+                "--modes".into(),
+                dir.path().join("missing.json").to_str().unwrap().into(),
+            ],
+            "cannot read mode file",
+        ),
+        (
+            vec!["--modes".into(), file("bad.json", "{\"modes\": [")],
+            "not valid mode JSON",
+        ),
+        (
+            vec![
+                "--modes".into(),
+                file(
+                    "nan.json",
+                    r#"{"modes":[{"freq_hz":NaN,"decay_per_s":1,"gain":1}]}"#,
+                ),
+            ],
+            "not valid mode JSON",
+        ),
+        (
+            vec![
+                "--modes".into(),
+                file(
+                    "neg.json",
+                    r#"{"modes":[{"freq_hz":-440,"decay_per_s":1,"gain":1}]}"#,
+                ),
+            ],
+            "must be >= 0",
+        ),
+        (
+            vec![
+                "--modes".into(),
+                file(
+                    "negd.json",
+                    r#"{"modes":[{"freq_hz":440,"decay_per_s":-1,"gain":1}]}"#,
+                ),
+            ],
+            "decay_per_s = -1",
+        ),
+        (
+            vec!["--modes".into(), file("empty.json", r#"{"modes":[]}"#)],
+            "empty",
+        ),
+        (
+            vec![
+                "--modes".into(),
+                file(
+                    "high.json",
+                    r#"{"modes":[{"freq_hz":30000,"decay_per_s":1,"gain":1}]}"#,
+                ),
+            ],
+            "higher sample rate",
+        ),
+        (vec!["--rate".into(), "100".into()], "--rate 100"),
+        (vec!["--seconds".into(), "-1".into()], "--seconds -1"),
+        (vec!["--seconds".into(), "NaN".into()], "--seconds NaN"),
+        (vec!["--hardness".into(), "5".into()], "hardness 5"),
+        (vec!["--velocity".into(), "inf".into()], "velocity inf"),
+        (vec!["--bits".into(), "12".into()], "--bits 12"),
+        (vec!["--scrape".into(), "1".into()], "needs the biquad bank"),
+        (
+            vec!["--bank".into(), "piano".into()],
+            "invalid value 'piano'",
+        ),
+    ];
+    for (extra, expect) in cases {
+        let mut args = vec!["render".to_owned(), "--out".into(), out.into()];
+        args.extend(extra.iter().cloned());
+        let o = modalforge(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra:?} should fail");
+        assert_eq!(err.trim().lines().count(), 1, "{extra:?}: {err}");
+        assert!(
+            err.starts_with("error: ") && err.contains(expect),
+            "{extra:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // Unwritable output (a directory that does not exist).
+    let o = modalforge(&[
+        "render",
+        "--out",
+        "/nonexistent-dir/x.wav",
+        "--seconds",
+        "0.1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && err.trim().lines().count() == 1
+            && err.contains("cannot write /nonexistent-dir/x.wav"),
+        "{err}"
+    );
+}
+
+#[test]
+fn demo_modes_round_trip_through_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = modalforge(&["demo-modes"]);
+    assert!(o.status.success());
+    let modes = dir.path().join("bar.json");
+    std::fs::write(&modes, &o.stdout).unwrap();
+    let out = dir.path().join("bar.wav");
+    let o = modalforge(&[
+        "render",
+        "--modes",
+        modes.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--seconds",
+        "0.2",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
