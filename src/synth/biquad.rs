@@ -26,6 +26,17 @@ use std::f64::consts::TAU;
 /// Samples processed per kernel call (the bank's scratch size).
 pub const CHUNK_SAMPLES: usize = 64;
 
+/// Filter states below this magnitude are set to exactly zero after every chunk. A decaying
+/// filter's state otherwise sinks into f64 denormals after minutes of silence (e^(-d t) < 1e-308),
+/// where x86 arithmetic is ~50x slower; one chunk can shrink a state by at most e^(-pi 64), so from
+/// 1e-30 it never reaches the denormal range before the next flush. 1e-30 is -600 dB.
+const SILENCE_FLOOR: f64 = 1e-30;
+
+/// Smallest decay a resonator is built with, in 1/s. A mode with zero decay has its poles on the
+/// unit circle: fine for a struck oscillator, but a driven filter would grow without bound when a
+/// force (a long scrape) holds its frequency. 1e-3 /s is a 60 dB ring time of 6900 s.
+pub const MIN_RESONATOR_DECAY_PER_S: f64 = 1e-3;
+
 /// Coefficients of one section, `H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BiquadCoeffs {
@@ -215,13 +226,14 @@ impl BiquadBank {
             .map(|i| {
                 BiquadCoeffs::modal_resonator(
                     modes.freq_hz()[i],
-                    modes.decay_per_s()[i],
+                    modes.decay_per_s()[i].max(MIN_RESONATOR_DECAY_PER_S),
                     modes.gain()[i],
                     fs,
                 )
             })
             .collect();
-        // Culled modes have 0 < f < fs/2 and finite values, so every resonator is stable.
+        // Culled modes have 0 < f < fs/2 and finite values, and decay >= MIN_RESONATOR_DECAY_PER_S
+        // puts both poles strictly inside the unit circle, so every resonator is stable.
         Self::with_backend(1, &sections, backend).expect("playable modes give stable resonators")
     }
 
@@ -276,6 +288,11 @@ impl BiquadBank {
                 &mut self.scratch,
                 chunk,
             );
+            for s in self.s1.iter_mut().chain(self.s2.iter_mut()) {
+                if s.abs() < SILENCE_FLOOR {
+                    *s = 0.0;
+                }
+            }
         }
     }
 }
