@@ -295,3 +295,31 @@ fn demo_modes_round_trip_through_a_file() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn every_preset_mode_file_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let presets = Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/modes");
+    let mut count = 0;
+    for entry in std::fs::read_dir(presets).unwrap() {
+        let path = entry.unwrap().path();
+        let out = dir.path().join("p.wav");
+        let o = modalforge(&[
+            "render",
+            "--modes",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--seconds",
+            "0.3",
+        ]);
+        assert!(
+            o.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        count += 1;
+    }
+    assert!(count >= 2);
+}
