@@ -25,3 +25,35 @@ pub use biquad::{BiquadBank, BiquadCoeffs, BiquadError};
 pub use excitation::{Excitation, ExcitationError, ForcePulse, NoiseForce};
 pub use oscillator::{OscillatorBank, StrikeError};
 pub use simd::SimdBackend;
+
+/// Helpers shared by the banks' unit tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use crate::modes::{CullSettings, ModeSet, PlayableModes};
+    use crate::synth::SimdBackend;
+
+    /// Playable modes from parallel arrays, with no gain culling.
+    pub fn modes(f: &[f64], d: &[f64], g: &[f64], fs: f64) -> PlayableModes {
+        let set = ModeSet::new(f.to_vec(), d.to_vec(), g.to_vec()).unwrap();
+        set.playable(
+            fs,
+            &CullSettings {
+                min_relative_gain: 0.0,
+            },
+        )
+        .unwrap()
+        .0
+    }
+
+    /// Every backend this CPU can run.
+    pub fn backends() -> Vec<SimdBackend> {
+        [
+            SimdBackend::Avx2Fma,
+            SimdBackend::Portable,
+            SimdBackend::Scalar,
+        ]
+        .into_iter()
+        .filter(|b| b.is_available())
+        .collect()
+    }
+}

@@ -1,31 +1,8 @@
 //! Biquad bank tests: analytic impulse responses and the oscillator bank are the truth.
 
 use super::*;
-use crate::modes::{CullSettings, ModeSet};
+use crate::synth::test_support::{backends, modes};
 use crate::synth::{Excitation, ForcePulse, OscillatorBank};
-
-fn modes(f: &[f64], d: &[f64], g: &[f64], fs: f64) -> PlayableModes {
-    let set = ModeSet::new(f.to_vec(), d.to_vec(), g.to_vec()).unwrap();
-    set.playable(
-        fs,
-        &CullSettings {
-            min_relative_gain: 0.0,
-        },
-    )
-    .unwrap()
-    .0
-}
-
-fn backends() -> Vec<SimdBackend> {
-    [
-        SimdBackend::Avx2Fma,
-        SimdBackend::Portable,
-        SimdBackend::Scalar,
-    ]
-    .into_iter()
-    .filter(|b| b.is_available())
-    .collect()
-}
 
 fn impulse(n: usize) -> Vec<f32> {
     let mut x = vec![0f32; n];

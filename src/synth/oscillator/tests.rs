@@ -1,30 +1,7 @@
 //! Oscillator bank tests: the analytic damped sine is the truth.
 
 use super::*;
-use crate::modes::{CullSettings, ModeSet};
-
-fn modes(f: &[f64], d: &[f64], g: &[f64], fs: f64) -> PlayableModes {
-    let set = ModeSet::new(f.to_vec(), d.to_vec(), g.to_vec()).unwrap();
-    set.playable(
-        fs,
-        &CullSettings {
-            min_relative_gain: 0.0,
-        },
-    )
-    .unwrap()
-    .0
-}
-
-fn backends() -> Vec<SimdBackend> {
-    [
-        SimdBackend::Avx2Fma,
-        SimdBackend::Portable,
-        SimdBackend::Scalar,
-    ]
-    .into_iter()
-    .filter(|b| b.is_available())
-    .collect()
-}
+use crate::synth::test_support::{backends, modes};
 
 /// q(t) = g e^(-d t) sin(2 pi f t), sampled at n / fs, for an impulse at sample `start`.
 fn analytic(f: f64, d: f64, g: f64, fs: f64, n: usize, start: usize) -> f64 {
