@@ -12,6 +12,19 @@ fn modalforge(args: &[&str]) -> Output {
         .expect("binary runs")
 }
 
+/// `modalforge render --modes MODES --out OUT --seconds SECONDS`.
+fn render_mode_file(modes: &Path, out: &Path, seconds: &str) -> Output {
+    modalforge(&[
+        "render",
+        "--modes",
+        modes.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--seconds",
+        seconds,
+    ])
+}
+
 fn read_wav(path: &Path) -> (hound::WavSpec, Vec<f32>) {
     let mut r = hound::WavReader::open(path).expect("a readable WAV");
     let spec = r.spec();
@@ -284,15 +297,7 @@ fn demo_modes_round_trip_through_a_file() {
     let modes = dir.path().join("bar.json");
     std::fs::write(&modes, &o.stdout).unwrap();
     let out = dir.path().join("bar.wav");
-    let o = modalforge(&[
-        "render",
-        "--modes",
-        modes.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--seconds",
-        "0.2",
-    ]);
+    let o = render_mode_file(&modes, &out, "0.2");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
@@ -304,15 +309,7 @@ fn every_preset_mode_file_renders() {
     for entry in std::fs::read_dir(presets).unwrap() {
         let path = entry.unwrap().path();
         let out = dir.path().join("p.wav");
-        let o = modalforge(&[
-            "render",
-            "--modes",
-            path.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--seconds",
-            "0.3",
-        ]);
+        let o = render_mode_file(&path, &out, "0.3");
         assert!(
             o.status.success(),
             "{}: {}",

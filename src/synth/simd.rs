@@ -37,6 +37,14 @@ impl SimdBackend {
         }
     }
 
+    /// Every backend this CPU can run, fastest first.
+    pub fn all_available() -> Vec<Self> {
+        [Self::Avx2Fma, Self::Portable, Self::Scalar]
+            .into_iter()
+            .filter(|b| b.is_available())
+            .collect()
+    }
+
     /// Whether this CPU can run the backend.
     pub fn is_available(self) -> bool {
         match self {
