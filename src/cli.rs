@@ -1,8 +1,12 @@
 //! The `modalforge` command line.
 //!
-//! Where it sits: the outermost layer. It reads a mode file (or takes the [`crate::demo`] bar),
-//! culls it, renders one strike or scrape with [`crate::synth::render`] and writes a WAV with
-//! hound. Every failure is one line on stderr and a non-zero exit, never a panic.
+//! Where it sits: the outermost layer. `modes` builds an object ([`object`]: shape, material,
+//! element, solver, strike), solves it and prints its modes; `render` takes a mode file or solves
+//! an object the same way, culls the modes, renders one strike or scrape with
+//! [`crate::synth::render`] and writes a WAV with hound. Every failure is one line on stderr and
+//! a non-zero exit, never a panic.
+
+pub mod object;
 
 use crate::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
 use crate::synth::render::{self, BankKind, Performance, RenderError};
@@ -27,17 +31,45 @@ pub struct Cli {
 pub enum Command {
     /// Render a struck (or scraped) object to a WAV file.
     Render(RenderArgs),
-    /// Print the built-in demo object's modes as JSON (a template for --modes files).
+    /// Solve an object's vibration modes (finite elements) and print them.
+    Modes(ModesArgs),
+    /// List the material presets.
+    Materials,
+    /// Print the analytic Euler-Bernoulli steel bar's modes as JSON (a template for --modes files).
     DemoModes,
+}
+
+/// Options of `modalforge modes`.
+#[derive(clap::Args, Debug)]
+pub struct ModesArgs {
+    /// The object.
+    #[command(flatten)]
+    pub object: object::ObjectArgs,
+    /// Number of (non-rigid) modes [default: 20].
+    #[arg(long, value_name = "K", conflicts_with = "fmax")]
+    pub modes: Option<usize>,
+    /// Compute every mode below this frequency instead.
+    #[arg(long, value_name = "HZ")]
+    pub fmax: Option<f64>,
+    /// Print JSON: {"modes":[...], "rigid_modes", "components", "voxels", "dofs", "residuals",
+    /// "timings_ms"}; readable by `render --modes`.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Options of `modalforge render`.
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
-    /// Mode file: {"modes":[{"freq_hz":F,"decay_per_s":D,"gain":G}, ...]}. Without it, the
-    /// built-in demo: a 32 cm free-free steel bar struck near one end.
-    #[arg(long, value_name = "FILE.json")]
+    /// Mode file: {"modes":[{"freq_hz":F,"decay_per_s":D,"gain":G}, ...]}. Without it the
+    /// object given by --shape is solved; with neither, a 32 cm steel bar (64x4x4 voxels).
+    #[arg(long, value_name = "FILE.json", conflicts_with = "shape")]
     pub modes: Option<PathBuf>,
+    /// The object to solve and strike (ignored with --modes).
+    #[command(flatten)]
+    pub object: object::ObjectArgs,
+    /// Highest mode frequency modelled when solving an object.
+    #[arg(long, value_name = "HZ", default_value_t = 10000.0)]
+    pub fmax: f64,
     /// Output WAV file.
     #[arg(long, value_name = "OUT.wav", default_value = "impact.wav")]
     pub out: PathBuf,
@@ -115,6 +147,9 @@ pub enum CliError {
     /// Rendering.
     #[error(transparent)]
     Render(#[from] RenderError<hound::Error>),
+    /// Building or solving an object.
+    #[error(transparent)]
+    Object(#[from] object::ObjectError),
 }
 
 /// What `render` did, for the summary line or `--json`.
@@ -144,6 +179,8 @@ pub struct RenderSummary {
 pub fn run(cli: Cli) -> Result<String, CliError> {
     match cli.command {
         Command::DemoModes => Ok(crate::demo::steel_bar().to_json()),
+        Command::Materials => Ok(materials_table()),
+        Command::Modes(args) => modes_command(&args),
         Command::Render(args) => {
             let json = args.json;
             let summary = render_command(&args)?;
@@ -159,9 +196,16 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
                     summary.modes.kept,
                     summary.bank,
                     if args.modes.is_some() {
-                        "from the mode file"
+                        "from the mode file".to_string()
                     } else {
-                        "demo steel bar"
+                        format!(
+                            "{} {}",
+                            args.object.material,
+                            args.object
+                                .shape
+                                .as_deref()
+                                .unwrap_or("bar:64x4x4 (0.32 m)")
+                        )
                     }
                 )
             })
@@ -192,7 +236,22 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
     crate::synth::oscillator::check_velocity(args.velocity)?;
     let modes = match &args.modes {
         Some(path) => ModeSet::from_json_file(path)?,
-        None => crate::demo::steel_bar(),
+        None => {
+            let mut object_args = args.object.clone();
+            if object_args.shape.is_none()
+                && object_args.size.is_none()
+                && object_args.voxel_size.is_none()
+            {
+                object_args.size = Some(0.32);
+            }
+            let object = object::Object::from_args(&object_args, Some(args.fmax))?;
+            let count = object.count(None, Some(args.fmax))?;
+            let basis = object.solve(count, object_args.tolerance)?;
+            let hit = object.hit(&basis, &object_args)?;
+            basis
+                .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
+                .map_err(object::ObjectError::from)?
+        }
     };
     let (playable, report) = modes.playable(fs, &CullSettings::default())?;
     let performance = match args.scrape {
@@ -294,4 +353,71 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
 
 fn to_int(y: f32, full_scale: f32) -> i32 {
     (y.clamp(-1.0, 1.0) * full_scale).round() as i32
+}
+
+/// `modalforge modes`.
+pub fn modes_command(args: &ModesArgs) -> Result<String, CliError> {
+    let object = object::Object::from_args(&args.object, args.fmax)?;
+    let count = object.count(args.modes, args.fmax)?;
+    let basis = object.solve(count, args.object.tolerance)?;
+    let hit = object.hit(&basis, &args.object)?;
+    let report = object::report(&object, &basis, &hit)?;
+    if args.json {
+        return Ok(serde_json::to_string_pretty(&report).expect("report serialises"));
+    }
+    let mut out = format!(
+        "{} voxels ({}x{}x{}, {:.4} m), {} DOFs, {} {}, {} rigid modes, {} components; \
+         assembly {:.0} ms, factor/setup {:.0} ms, iterations {:.0} ms\n",
+        report.voxels,
+        report.grid[0],
+        report.grid[1],
+        report.grid[2],
+        report.voxel_size_m,
+        report.dofs,
+        report.element,
+        report.solver,
+        report.rigid_modes,
+        report.components,
+        report.timings_ms.assemble,
+        report.timings_ms.setup,
+        report.timings_ms.iterate
+    );
+    out.push_str("  #    freq_hz  decay_per_s        gain  residual\n");
+    for (i, (m, r)) in report.modes.iter().zip(&report.residuals).enumerate() {
+        if m.overdamped {
+            out.push_str(&format!(
+                "{:>3}  overdamped ({:.1} Hz undamped)\n",
+                i + 1,
+                m.natural_hz
+            ));
+        } else {
+            out.push_str(&format!(
+                "{:>3} {:>10.2} {:>12.3} {:>11.3e} {:>9.1e}\n",
+                i + 1,
+                m.freq_hz,
+                m.decay_per_s,
+                m.gain,
+                r
+            ));
+        }
+    }
+    Ok(out.trim_end().to_string())
+}
+
+fn materials_table() -> String {
+    let mut out = String::from("name            E (Pa)    rho (kg/m3)  nu     damping models\n");
+    for name in crate::material::preset_names() {
+        if let Ok(m) = crate::material::Material::preset(name) {
+            let models: Vec<&str> = m.damping_models.iter().map(|(n, _)| n.as_str()).collect();
+            out.push_str(&format!(
+                "{:<15} {:<9.3e} {:<12} {:<6} {}\n",
+                name,
+                m.youngs_modulus_pa,
+                m.density_kg_m3,
+                m.poisson_ratio,
+                models.join(", ")
+            ));
+        }
+    }
+    out.trim_end().to_string()
 }

@@ -7,5 +7,10 @@
 
 pub mod cli;
 pub mod demo;
+pub mod eigen;
+pub mod fem;
+pub mod material;
+pub mod modal;
 pub mod modes;
+pub mod shape;
 pub mod synth;

@@ -1,0 +1,417 @@
+//! The object options shared by `modalforge modes` and `modalforge render`: shape, material,
+//! size and resolution, element, solver, strike; and the `modes` report.
+
+use crate::eigen::{EigenOptions, ModeCount, SolverKind};
+use crate::fem::ElementKind;
+use crate::material::{DampedMode, Material, MaterialError};
+use crate::modal::{Hit, ModalError, ModeBasis};
+use crate::shape::mesh::{self, MeshError};
+use crate::shape::spec::{ShapeSpec, SpecError};
+use crate::shape::vox::{self, VoxError};
+use crate::shape::{ops, VoxelGrid};
+use serde::Serialize;
+
+/// Default largest extent of an object when neither `--size` nor `--voxel-size` is given.
+pub const DEFAULT_SIZE_M: f64 = 0.2;
+
+/// Object options.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ObjectArgs {
+    /// Shape: a built-in (bar, plate, box, sphere, cylinder, tube, bowl, cup, bell, with
+    /// parameters in voxels such as `bowl:d=32,wall=2` or `bar:64x4x4`; see `modalforge shapes`),
+    /// or a .vox, .obj or .stl file.
+    #[arg(long, value_name = "SPEC")]
+    pub shape: Option<String>,
+    /// Material: a preset (`modalforge materials` lists them), a .toml file, or
+    /// E,RHO,NU[,ALPHA1,ALPHA2] in SI units.
+    #[arg(
+        long,
+        value_name = "NAME",
+        default_value = "steel",
+        allow_hyphen_values = true
+    )]
+    pub material: String,
+    /// Damping model of the preset: rayleigh, caughey or power_law.
+    #[arg(long, value_name = "MODEL")]
+    pub damping: Option<String>,
+    /// Voxel edge length in metres (fixes the size and the resolution).
+    #[arg(
+        long,
+        value_name = "M",
+        conflicts_with = "size",
+        allow_negative_numbers = true
+    )]
+    pub voxel_size: Option<f64>,
+    /// Largest extent of the object in metres [default: 0.2].
+    #[arg(long, value_name = "M", allow_negative_numbers = true)]
+    pub size: Option<f64>,
+    /// Voxels along the longest side: a number, or `auto` to pick it from --size and --fmax
+    /// [default: the shape's own; auto for meshes].
+    #[arg(long, value_name = "N|auto")]
+    pub resolution: Option<String>,
+    /// Finite element: hex8i (default: trilinear with incompatible modes, no locking), hex27
+    /// (quadratic, most accurate) or hex8 (plain trilinear, the papers' reference; stiff).
+    #[arg(long, value_name = "NAME", default_value = "hex8i")]
+    pub element: String,
+    /// Eigensolver: lanczos (shift-invert on a sparse Cholesky) or lobpcg.
+    #[arg(long, value_name = "NAME", default_value = "lanczos")]
+    pub solver: String,
+    /// Residual tolerance of the eigensolver (NeuralSound eq. 6).
+    #[arg(long, value_name = "TOL", default_value_t = crate::eigen::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    /// Strike point X,Y,Z in metres from the object's minimum corner (snapped to the nearest
+    /// surface) [default: the top face, off-centre].
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub hit: Option<String>,
+    /// Force direction DX,DY,DZ [default: into the struck face].
+    #[arg(long, value_name = "DX,DY,DZ", allow_hyphen_values = true)]
+    pub force: Option<String>,
+}
+
+/// Why an object could not be built or solved.
+#[derive(Debug, thiserror::Error)]
+pub enum ObjectError {
+    /// Bad shape spec.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// Bad .vox file.
+    #[error(transparent)]
+    Vox(#[from] VoxError),
+    /// Bad mesh file.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// Bad material.
+    #[error(transparent)]
+    Material(#[from] MaterialError),
+    /// Shape, solve or voicing failed.
+    #[error(transparent)]
+    Modal(#[from] ModalError),
+    /// A bad option value.
+    #[error("{0}")]
+    Option(String),
+}
+
+/// A shape ready to solve, with its physical scale.
+pub struct Object {
+    /// The voxels.
+    pub grid: VoxelGrid,
+    /// The material.
+    pub material: Material,
+    /// Element.
+    pub element: ElementKind,
+    /// Solver.
+    pub solver: SolverKind,
+}
+
+fn positive(name: &str, v: f64) -> Result<f64, ObjectError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ObjectError::Option(format!(
+            "{name} {v} must be a positive finite number"
+        )))
+    }
+}
+
+/// Parses `X,Y,Z`.
+pub fn parse_vec3(name: &str, s: &str) -> Result<[f64; 3], ObjectError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().unwrap_or(f64::NAN))
+        .collect();
+    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
+        return Err(ObjectError::Option(format!(
+            "{name} '{s}' must be three finite numbers X,Y,Z"
+        )));
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+/// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).
+pub fn auto_resolution(
+    material: &Material,
+    element: ElementKind,
+    size_m: f64,
+    thinnest_fraction: f64,
+    fmax_hz: f64,
+) -> usize {
+    // Shortest wavelength at fmax: shear waves, or bending waves in the thinnest wall.
+    let omega = std::f64::consts::TAU * fmax_hz;
+    let shear = material.shear_wave_speed_m_s() / fmax_hz;
+    let t = (thinnest_fraction * size_m).max(1e-6);
+    let nu = material.poisson_ratio;
+    let d_over_rho_t =
+        material.youngs_modulus_pa * t * t / (12.0 * (1.0 - nu * nu) * material.density_kg_m3);
+    let bending = std::f64::consts::TAU * d_over_rho_t.powf(0.25) / omega.sqrt();
+    let per_wavelength = match element {
+        ElementKind::Hex27 => 3.0,
+        _ => 6.0,
+    };
+    let h = shear.min(bending) / per_wavelength;
+    // At least two voxels across the thinnest feature.
+    let by_wave = (size_m / h).ceil();
+    let by_wall = (2.0 / thinnest_fraction).ceil();
+    by_wave.max(by_wall).clamp(8.0, 96.0) as usize
+}
+
+impl Object {
+    /// Builds the object from the options; `fmax_hz` drives `--resolution auto`.
+    pub fn from_args(args: &ObjectArgs, fmax_hz: Option<f64>) -> Result<Self, ObjectError> {
+        let mut material = Material::parse(&args.material)?;
+        if let Some(model) = &args.damping {
+            material = material.clone().with_damping_model(model).ok_or_else(|| {
+                let have: Vec<&str> = material
+                    .damping_models
+                    .iter()
+                    .map(|(n, _)| n.as_str())
+                    .collect();
+                ObjectError::Option(format!(
+                    "material {} has no damping model '{model}' (it has {})",
+                    material.name,
+                    have.join(", ")
+                ))
+            })?;
+        }
+        let element = ElementKind::from_name(&args.element).ok_or_else(|| {
+            ObjectError::Option(format!(
+                "--element {} is unknown: use hex8i, hex27 or hex8",
+                args.element
+            ))
+        })?;
+        let solver = match args.solver.as_str() {
+            "lanczos" => SolverKind::Lanczos,
+            "lobpcg" => SolverKind::Lobpcg,
+            s => {
+                return Err(ObjectError::Option(format!(
+                    "--solver {s} is unknown: use lanczos or lobpcg"
+                )))
+            }
+        };
+        if let Some(v) = args.voxel_size {
+            positive("--voxel-size", v)?;
+        }
+        let size_m = positive("--size", args.size.unwrap_or(DEFAULT_SIZE_M))?;
+        let spec: ShapeSpec = args.shape.as_deref().unwrap_or("bar:64x4x4").parse()?;
+        let resolution = |longest: f64, thinnest: f64| -> Result<Option<usize>, ObjectError> {
+            match args.resolution.as_deref() {
+                None => Ok(None),
+                Some("auto") => {
+                    let f = fmax_hz.ok_or_else(|| {
+                        ObjectError::Option("--resolution auto needs --fmax".into())
+                    })?;
+                    Ok(Some(auto_resolution(
+                        &material,
+                        element,
+                        size_m,
+                        thinnest / longest,
+                        f,
+                    )))
+                }
+                Some(n) => match n.parse::<usize>() {
+                    Ok(r) if (1..=crate::shape::MAX_GRID_DIM).contains(&r) => Ok(Some(r)),
+                    _ => Err(ObjectError::Option(format!(
+                        "--resolution {n} must be auto or a whole number from 1 to {}",
+                        crate::shape::MAX_GRID_DIM
+                    ))),
+                },
+            }
+        };
+        let grid = match &spec {
+            ShapeSpec::Primitive { shape, hollow } => {
+                let ext = shape.extent();
+                let longest = ext.iter().copied().fold(0.0, f64::max);
+                let scale = match resolution(longest, shape.thinnest())? {
+                    Some(r) => r as f64 / longest,
+                    None => 1.0,
+                };
+                let mut grid = shape.rasterize(scale, 1.0).map_err(ModalError::from)?;
+                if let Some(w) = hollow {
+                    grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
+                }
+                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
+                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
+                grid.with_voxel_size(h).map_err(ModalError::from)?
+            }
+            ShapeSpec::Vox(path) => {
+                let grid = vox::read_vox(path, 1.0)?;
+                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
+                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
+                grid.with_voxel_size(h).map_err(ModalError::from)?
+            }
+            ShapeSpec::Mesh(path) => {
+                let m = mesh::read_mesh(path)?;
+                let name = path.display().to_string();
+                let r = match resolution(1.0, 0.05)? {
+                    Some(r) => r,
+                    None if fmax_hz.is_some() => {
+                        auto_resolution(&material, element, size_m, 0.05, fmax_hz.unwrap())
+                    }
+                    None => 32,
+                };
+                let grid = mesh::voxelize(&m, r, &name)?;
+                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
+                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
+                grid.with_voxel_size(h).map_err(ModalError::from)?
+            }
+        };
+        grid.check_solvable().map_err(ModalError::from)?;
+        Ok(Object {
+            grid,
+            material,
+            element,
+            solver,
+        })
+    }
+
+    /// Solves the shape for `count` modes.
+    pub fn solve(&self, count: ModeCount, tolerance: f64) -> Result<ModeBasis, ObjectError> {
+        let options = EigenOptions {
+            count,
+            tolerance,
+            ..Default::default()
+        };
+        Ok(ModeBasis::solve(
+            &self.grid,
+            self.element,
+            self.material.poisson_ratio,
+            self.solver,
+            &options,
+        )?)
+    }
+
+    /// The mode count for `--modes K` / `--fmax HZ`, in reference units.
+    pub fn count(
+        &self,
+        modes: Option<usize>,
+        fmax_hz: Option<f64>,
+    ) -> Result<ModeCount, ObjectError> {
+        match (modes, fmax_hz) {
+            (Some(k), _) => Ok(ModeCount::First(k)),
+            (None, Some(f)) => Ok(ModeCount::Below(ModeBasis::reference_bound(
+                &self.material,
+                self.grid.voxel_size_m(),
+                positive("--fmax", f)?,
+            ))),
+            (None, None) => Ok(ModeCount::First(20)),
+        }
+    }
+
+    /// The strike from `--hit` / `--force`.
+    pub fn hit(&self, basis: &ModeBasis, args: &ObjectArgs) -> Result<Hit, ObjectError> {
+        let mut hit = basis.default_hit(self.grid.voxel_size_m());
+        if let Some(h) = &args.hit {
+            hit.point_m = parse_vec3("--hit", h)?;
+        }
+        if let Some(f) = &args.force {
+            hit.direction = Some(parse_vec3("--force", f)?);
+        }
+        Ok(hit)
+    }
+}
+
+/// One mode in the `modes` report.
+#[derive(Debug, Serialize)]
+pub struct ModeReport {
+    /// Damped frequency, Hz (0 when overdamped).
+    pub freq_hz: f64,
+    /// Decay rate, 1/s.
+    pub decay_per_s: f64,
+    /// Impulse amplitude at the hit.
+    pub gain: f64,
+    /// Undamped natural frequency, Hz.
+    pub natural_hz: f64,
+    /// True when the mode does not oscillate (never played).
+    pub overdamped: bool,
+}
+
+/// Time split of a solve, ms.
+#[derive(Debug, Serialize)]
+pub struct Timings {
+    /// Assembly.
+    pub assemble: f64,
+    /// Factorisation or preconditioner setup plus iterations.
+    pub solve: f64,
+    /// Factorisation / preconditioner setup alone.
+    pub setup: f64,
+    /// Iterations alone.
+    pub iterate: f64,
+}
+
+/// The `modes --json` document.
+#[derive(Debug, Serialize)]
+pub struct ModesReport {
+    /// Every computed non-rigid mode, ascending.
+    pub modes: Vec<ModeReport>,
+    /// Zero-frequency modes found numerically and dropped.
+    pub rigid_modes: usize,
+    /// Face-connected components.
+    pub components: usize,
+    /// Solid voxels.
+    pub voxels: usize,
+    /// Degrees of freedom.
+    pub dofs: usize,
+    /// Residual (NeuralSound eq. 6) per mode.
+    pub residuals: Vec<f64>,
+    /// Time split, ms.
+    pub timings_ms: Timings,
+    /// Grid dimensions.
+    pub grid: [usize; 3],
+    /// Voxel edge, m.
+    pub voxel_size_m: f64,
+    /// Element used.
+    pub element: &'static str,
+    /// Solver used.
+    pub solver: &'static str,
+    /// Material name.
+    pub material: String,
+    /// Hit point, m, and force direction used.
+    pub hit_m: [f64; 3],
+}
+
+/// Builds the report for a solved object.
+pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesReport, ObjectError> {
+    let h = object.grid.voxel_size_m();
+    let voiced = basis.voice(&object.material, h, hit)?;
+    let sol = &basis.solution;
+    Ok(ModesReport {
+        modes: voiced
+            .iter()
+            .map(|m| match m.damped {
+                DampedMode::Oscillating {
+                    freq_hz,
+                    decay_per_s,
+                } => ModeReport {
+                    freq_hz,
+                    decay_per_s,
+                    gain: m.gain,
+                    natural_hz: m.natural_hz,
+                    overdamped: false,
+                },
+                DampedMode::Overdamped { decay_per_s } => ModeReport {
+                    freq_hz: 0.0,
+                    decay_per_s,
+                    gain: 0.0,
+                    natural_hz: m.natural_hz,
+                    overdamped: true,
+                },
+            })
+            .collect(),
+        rigid_modes: sol.rigid_modes,
+        components: basis.components,
+        voxels: object.grid.count(),
+        dofs: basis.model.dofs(),
+        residuals: sol.residuals.clone(),
+        timings_ms: Timings {
+            assemble: basis.assemble_ms,
+            solve: sol.timings.setup_ms + sol.timings.iterate_ms,
+            setup: sol.timings.setup_ms,
+            iterate: sol.timings.iterate_ms,
+        },
+        grid: object.grid.dims(),
+        voxel_size_m: h,
+        element: object.element.name(),
+        solver: object.solver.name(),
+        material: object.material.name.clone(),
+        hit_m: hit.point_m,
+    })
+}

@@ -1,0 +1,1 @@
+//! Geometric multigrid on the voxel grid (LOBPCG's preconditioner). Not yet written.

@@ -1,0 +1,180 @@
+//! Finite-element discretisation of a voxel object: linear elasticity, free-free, consistent mass.
+//!
+//! Where it sits: between the shape ([`crate::shape`]) and the eigensolvers ([`crate::eigen`]).
+//! [`FemModel::assemble`] numbers the nodes of the occupied voxels, and sums the single unit-cube
+//! element matrix ([`element`]) over all voxels into node-blocked sparse `K` and `M`
+//! ([`sparse`]). The model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge
+//! `h = 1`): physical matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical
+//! object are `E / (rho h^2)` times the reference ones and its mass-normalised modes are
+//! `(rho h^3)^(-1/2)` times the reference ones (the exact form of Deep-Modal's scaling laws,
+//! seed 000 eq. 10-12; [`crate::modal`] applies them).
+
+pub mod element;
+pub mod ordering;
+pub mod sparse;
+
+pub use element::{ElementKind, UnitElement};
+use sparse::{BlockPattern, Blocks};
+
+use crate::shape::{ShapeError, VoxelGrid};
+
+/// An assembled free-free FEM model in reference units.
+#[derive(Clone, Debug)]
+pub struct FemModel {
+    /// Element kind.
+    pub kind: ElementKind,
+    /// Poisson's ratio.
+    pub poisson_ratio: f64,
+    /// Lattice dimensions (`p n + 1` per axis).
+    pub lattice: [usize; 3],
+    /// Lattice index of each model node.
+    pub node_lattice: Vec<usize>,
+    /// Lattice index -> node number (`u32::MAX` where unused).
+    pub lattice_node: Vec<u32>,
+    /// Local-to-global node numbers, `kind.nodes()` per element (one element per solid voxel, in
+    /// the grid's storage order).
+    pub elements: Vec<u32>,
+    /// The solid voxels, in element order.
+    pub voxels: Vec<[usize; 3]>,
+    /// Block sparsity shared by `K` and `M`.
+    pub pattern: BlockPattern,
+    /// Stiffness blocks.
+    pub k: Blocks,
+    /// Mass blocks.
+    pub m: Blocks,
+}
+
+impl FemModel {
+    /// Assembles `K` and `M` for every solid voxel of `grid`.
+    pub fn assemble(
+        grid: &VoxelGrid,
+        kind: ElementKind,
+        poisson_ratio: f64,
+    ) -> Result<Self, ShapeError> {
+        grid.check_solvable()?;
+        let unit = UnitElement::new(kind, poisson_ratio);
+        let p = kind.order();
+        let n1 = p + 1;
+        let nloc = kind.nodes();
+        let dims = grid.dims();
+        let lattice = [p * dims[0] + 1, p * dims[1] + 1, p * dims[2] + 1];
+        let lidx = |x: usize, y: usize, z: usize| x + lattice[0] * (y + lattice[1] * z);
+        let voxels = grid.solid_voxels();
+        // Number the nodes in lattice order (keeps neighbours close in memory).
+        let mut lattice_node = vec![u32::MAX; lattice.iter().product()];
+        for v in &voxels {
+            for az in 0..n1 {
+                for ay in 0..n1 {
+                    for ax in 0..n1 {
+                        lattice_node[lidx(p * v[0] + ax, p * v[1] + ay, p * v[2] + az)] = 0;
+                    }
+                }
+            }
+        }
+        let mut node_lattice = Vec::new();
+        for (i, slot) in lattice_node.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = node_lattice.len() as u32;
+                node_lattice.push(i);
+            }
+        }
+        let mut elements = Vec::with_capacity(voxels.len() * nloc);
+        for v in &voxels {
+            for az in 0..n1 {
+                for ay in 0..n1 {
+                    for ax in 0..n1 {
+                        elements
+                            .push(lattice_node[lidx(p * v[0] + ax, p * v[1] + ay, p * v[2] + az)]);
+                    }
+                }
+            }
+        }
+        // Pattern: each node's neighbours are the nodes of the elements around it.
+        let nodes = node_lattice.len();
+        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nodes];
+        for e in elements.chunks_exact(nloc) {
+            for &a in e {
+                rows[a as usize].extend_from_slice(e);
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(nodes + 1);
+        let mut col = Vec::new();
+        row_ptr.push(0);
+        for r in rows.iter_mut() {
+            r.sort_unstable();
+            r.dedup();
+            col.extend_from_slice(r);
+            row_ptr.push(col.len());
+        }
+        drop(rows);
+        let pattern = BlockPattern { row_ptr, col };
+        let mut k = vec![[0.0; 9]; pattern.col.len()];
+        let mut m = vec![[0.0; 9]; pattern.col.len()];
+        let ndof = 3 * nloc;
+        let mut slots = vec![0usize; nloc * nloc];
+        for e in elements.chunks_exact(nloc) {
+            for (i, &a) in e.iter().enumerate() {
+                for (j, &b) in e.iter().enumerate() {
+                    slots[i * nloc + j] = pattern
+                        .find(a as usize, b)
+                        .expect("pattern holds every element pair");
+                }
+            }
+            for i in 0..nloc {
+                for j in 0..nloc {
+                    let s = slots[i * nloc + j];
+                    for c in 0..3 {
+                        for d in 0..3 {
+                            let off = (3 * i + c) * ndof + 3 * j + d;
+                            k[s][3 * c + d] += unit.stiffness[off];
+                            m[s][3 * c + d] += unit.mass[off];
+                        }
+                    }
+                }
+            }
+        }
+        Ok(FemModel {
+            kind,
+            poisson_ratio,
+            lattice,
+            node_lattice,
+            lattice_node,
+            elements,
+            voxels,
+            pattern,
+            k,
+            m,
+        })
+    }
+
+    /// The same model with `K` multiplied by `stiffness` and `M` by `mass` (for example
+    /// `E h` and `rho h^3` to obtain the physical matrices).
+    pub fn scaled(&self, stiffness: f64, mass: f64) -> Self {
+        let mut out = self.clone();
+        out.k.iter_mut().flatten().for_each(|v| *v *= stiffness);
+        out.m.iter_mut().flatten().for_each(|v| *v *= mass);
+        out
+    }
+
+    /// Number of nodes.
+    pub fn nodes(&self) -> usize {
+        self.node_lattice.len()
+    }
+
+    /// Degrees of freedom (3 per node).
+    pub fn dofs(&self) -> usize {
+        3 * self.nodes()
+    }
+
+    /// Position of a node in voxel units.
+    pub fn node_position(&self, node: usize) -> [f64; 3] {
+        let l = self.node_lattice[node];
+        let p = self.kind.order() as f64;
+        let [lx, ly, _] = self.lattice;
+        [
+            (l % lx) as f64 / p,
+            ((l / lx) % ly) as f64 / p,
+            (l / (lx * ly)) as f64 / p,
+        ]
+    }
+}

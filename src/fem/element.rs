@@ -1,0 +1,375 @@
+//! Element matrices of the voxel cube: plain trilinear hex8, hex8 with incompatible modes, and
+//! triquadratic hex27.
+//!
+//! Every voxel is the same axis-aligned cube, so each element matrix is computed once, for a unit
+//! cube with `E = 1` and `rho = 1`, and scaled: `K_e = E h K_unit(nu)`, `M_e = rho h^3 M_unit`
+//! (the Jacobian is `h/2 I`, so `B ~ 1/h` and `dV ~ h^3`). Local node `a` sits at lattice offset
+//! `(ax, ay, az) / p` in the cube, `a = ax + (p+1) (ay + (p+1) az)`; local DOF `3 a + c`.
+//!
+//! - **hex8** (`p = 1`, 2x2x2 Gauss): the papers' ground truth (seed 001 sec. 3.1); it shear-locks
+//!   in bending, badly where walls are 1-4 voxels thick.
+//! - **hex8 with incompatible modes** (Wilson, Taylor, Doherty and Ghaboussi 1973; Taylor, Beresford
+//!   and Wilson 1976): three bubble modes `1 - xi_i^2` per displacement component enrich the strain
+//!   field so pure bending is represented exactly; the 9 internal DOFs are condensed out
+//!   statically, so the element has hex8's nodes and cost. On a cube (constant Jacobian) it
+//!   passes the patch test without Taylor's correction.
+//! - **hex27** (`p = 2`, 3x3x3 Gauss, exact for the mass and stiffness integrands): quadratic
+//!   Lagrange; higher-order elements are much more accurate than linear ones (seed 003 sec. 3.3).
+
+/// The finite element used on every voxel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ElementKind {
+    /// Trilinear 8-node hexahedron, full integration.
+    Hex8,
+    /// Trilinear hexahedron with condensed incompatible (bubble) modes: no shear locking.
+    Hex8Incompatible,
+    /// Triquadratic 27-node hexahedron.
+    Hex27,
+}
+
+impl ElementKind {
+    /// Polynomial order of the nodal interpolation.
+    pub fn order(self) -> usize {
+        match self {
+            ElementKind::Hex27 => 2,
+            _ => 1,
+        }
+    }
+
+    /// Nodes per element.
+    pub fn nodes(self) -> usize {
+        (self.order() + 1).pow(3)
+    }
+
+    /// CLI name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementKind::Hex8 => "hex8",
+            ElementKind::Hex8Incompatible => "hex8i",
+            ElementKind::Hex27 => "hex27",
+        }
+    }
+
+    /// Every kind, cheapest first.
+    pub const ALL: [ElementKind; 3] = [
+        ElementKind::Hex8,
+        ElementKind::Hex8Incompatible,
+        ElementKind::Hex27,
+    ];
+
+    /// Parses a CLI name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+/// Element matrices of the unit cube with `E = 1`, `rho = 1`; dense, row-major, `3 n` square.
+#[derive(Clone, Debug)]
+pub struct UnitElement {
+    /// The element kind.
+    pub kind: ElementKind,
+    /// Poisson's ratio they were computed for.
+    pub poisson_ratio: f64,
+    /// Stiffness, `(3n)^2` entries.
+    pub stiffness: Vec<f64>,
+    /// Consistent mass, `(3n)^2` entries.
+    pub mass: Vec<f64>,
+}
+
+/// Gauss-Legendre points and weights on [-1, 1].
+fn gauss(n: usize) -> (&'static [f64], &'static [f64]) {
+    const P2: [f64; 2] = [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8];
+    const W2: [f64; 2] = [1.0, 1.0];
+    const P3: [f64; 3] = [-0.774_596_669_241_483_4, 0.0, 0.774_596_669_241_483_4];
+    const W3: [f64; 3] = [5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0];
+    match n {
+        2 => (&P2, &W2),
+        _ => (&P3, &W3),
+    }
+}
+
+/// 1D Lagrange basis of order `p` on nodes equally spaced in [-1, 1]: values and derivatives.
+fn basis_1d(p: usize, xi: f64) -> ([f64; 3], [f64; 3]) {
+    if p == 1 {
+        ([(1.0 - xi) / 2.0, (1.0 + xi) / 2.0, 0.0], [-0.5, 0.5, 0.0])
+    } else {
+        (
+            [xi * (xi - 1.0) / 2.0, 1.0 - xi * xi, xi * (xi + 1.0) / 2.0],
+            [xi - 0.5, -2.0 * xi, xi + 0.5],
+        )
+    }
+}
+
+/// Isotropic elasticity matrix (Voigt: xx, yy, zz, xy, yz, zx; engineering shear) for `E = 1`.
+pub fn elasticity(nu: f64) -> [[f64; 6]; 6] {
+    let lambda = nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    let mu = 1.0 / (2.0 * (1.0 + nu));
+    let mut d = [[0.0; 6]; 6];
+    for i in 0..3 {
+        d[i][..3].fill(lambda);
+        d[i][i] = lambda + 2.0 * mu;
+        d[i + 3][i + 3] = mu;
+    }
+    d
+}
+
+/// Adds `w B^T D B` for a set of shape-function gradients `grad[a] = dN_a/dx` (physical) into a
+/// dense `ndof x ndof` matrix.
+fn add_btdb(k: &mut [f64], ndof: usize, grad: &[[f64; 3]], d: &[[f64; 6]; 6], w: f64) {
+    // B column for DOF (a, c): strain vector.
+    let bcol = |a: usize, c: usize| -> [f64; 6] {
+        let g = grad[a];
+        let mut b = [0.0; 6];
+        b[c] = g[c];
+        // Shear: xy (3) = du/dy + dv/dx, yz (4) = dv/dz + dw/dy, zx (5) = dw/dx + du/dz.
+        match c {
+            0 => {
+                b[3] = g[1];
+                b[5] = g[2];
+            }
+            1 => {
+                b[3] = g[0];
+                b[4] = g[2];
+            }
+            _ => {
+                b[4] = g[1];
+                b[5] = g[0];
+            }
+        }
+        b
+    };
+    let n = grad.len();
+    let cols: Vec<[f64; 6]> = (0..3 * n).map(|i| bcol(i / 3, i % 3)).collect();
+    let db: Vec<[f64; 6]> = cols
+        .iter()
+        .map(|b| {
+            let mut out = [0.0; 6];
+            for (r, o) in out.iter_mut().enumerate() {
+                *o = (0..6).map(|s| d[r][s] * b[s]).sum();
+            }
+            out
+        })
+        .collect();
+    for i in 0..3 * n {
+        for j in 0..3 * n {
+            let v: f64 = (0..6).map(|s| cols[i][s] * db[j][s]).sum();
+            k[i * ndof + j] += w * v;
+        }
+    }
+}
+
+/// Solves the small SPD system `A X = B` in place by Cholesky (`A` n x n, `B` n x m, row-major).
+fn spd_solve(a: &mut [f64], n: usize, b: &mut [f64], m: usize) {
+    for j in 0..n {
+        let mut s = a[j * n + j];
+        for k in 0..j {
+            s -= a[j * n + k] * a[j * n + k];
+        }
+        let l = s.sqrt();
+        a[j * n + j] = l;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = s / l;
+        }
+    }
+    for c in 0..m {
+        for i in 0..n {
+            let mut s = b[i * m + c];
+            for k in 0..i {
+                s -= a[i * n + k] * b[k * m + c];
+            }
+            b[i * m + c] = s / a[i * n + i];
+        }
+        for i in (0..n).rev() {
+            let mut s = b[i * m + c];
+            for k in i + 1..n {
+                s -= a[k * n + i] * b[k * m + c];
+            }
+            b[i * m + c] = s / a[i * n + i];
+        }
+    }
+}
+
+impl UnitElement {
+    /// Computes the unit-cube matrices of `kind` for Poisson's ratio `nu`.
+    pub fn new(kind: ElementKind, nu: f64) -> Self {
+        let p = kind.order();
+        let n1 = p + 1;
+        let nn = kind.nodes();
+        let ndof = 3 * nn;
+        let (pts, wts) = gauss(p + 1);
+        let d = elasticity(nu);
+        // Unit cube: x = (xi + 1) / 2, so d/dx = 2 d/dxi and dV = dxi^3 / 8.
+        let det_j = 0.125;
+        let mut k = vec![0.0; ndof * ndof];
+        let mut m = vec![0.0; ndof * ndof];
+        // Incompatible modes: 3 bubbles x 3 components, coupled to the nodal DOFs.
+        let incompatible = kind == ElementKind::Hex8Incompatible;
+        let nall = if incompatible { nn + 3 } else { nn };
+        let mut kfull = vec![0.0; 9 * nall * nall];
+        for (iz, &z) in pts.iter().enumerate() {
+            for (iy, &y) in pts.iter().enumerate() {
+                for (ix, &x) in pts.iter().enumerate() {
+                    let w = wts[ix] * wts[iy] * wts[iz] * det_j;
+                    let (nx, dx) = basis_1d(p, x);
+                    let (ny, dy) = basis_1d(p, y);
+                    let (nz, dz) = basis_1d(p, z);
+                    let mut val = vec![0.0; nn];
+                    let mut grad = vec![[0.0; 3]; nall];
+                    for az in 0..n1 {
+                        for ay in 0..n1 {
+                            for ax in 0..n1 {
+                                let a = ax + n1 * (ay + n1 * az);
+                                val[a] = nx[ax] * ny[ay] * nz[az];
+                                grad[a] = [
+                                    2.0 * dx[ax] * ny[ay] * nz[az],
+                                    2.0 * nx[ax] * dy[ay] * nz[az],
+                                    2.0 * nx[ax] * ny[ay] * dz[az],
+                                ];
+                            }
+                        }
+                    }
+                    if incompatible {
+                        // Bubbles 1 - xi^2, 1 - eta^2, 1 - zeta^2; gradients in x.
+                        grad[nn] = [2.0 * -2.0 * x, 0.0, 0.0];
+                        grad[nn + 1] = [0.0, 2.0 * -2.0 * y, 0.0];
+                        grad[nn + 2] = [0.0, 0.0, 2.0 * -2.0 * z];
+                    }
+                    add_btdb(&mut kfull, 3 * nall, &grad, &d, w);
+                    for a in 0..nn {
+                        for b in 0..nn {
+                            let v = w * val[a] * val[b];
+                            for c in 0..3 {
+                                m[(3 * a + c) * ndof + 3 * b + c] += v;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if incompatible {
+            // Static condensation: K = Kuu - Kua Kaa^-1 Kau.
+            let (nu_, na) = (ndof, 9);
+            let full = 3 * nall;
+            let mut kaa = vec![0.0; na * na];
+            let mut kau = vec![0.0; na * nu_];
+            for i in 0..na {
+                for j in 0..na {
+                    kaa[i * na + j] = kfull[(nu_ + i) * full + nu_ + j];
+                }
+                for j in 0..nu_ {
+                    kau[i * nu_ + j] = kfull[(nu_ + i) * full + j];
+                }
+            }
+            let mut x = kau.clone();
+            spd_solve(&mut kaa, na, &mut x, nu_);
+            for i in 0..nu_ {
+                for j in 0..nu_ {
+                    let corr: f64 = (0..na).map(|s| kau[s * nu_ + i] * x[s * nu_ + j]).sum();
+                    k[i * ndof + j] = kfull[i * full + j] - corr;
+                }
+            }
+        } else {
+            k.copy_from_slice(&kfull);
+        }
+        // Symmetrise away rounding.
+        for i in 0..ndof {
+            for j in 0..i {
+                let s = 0.5 * (k[i * ndof + j] + k[j * ndof + i]);
+                k[i * ndof + j] = s;
+                k[j * ndof + i] = s;
+            }
+        }
+        UnitElement {
+            kind,
+            poisson_ratio: nu,
+            stiffness: k,
+            mass: m,
+        }
+    }
+
+    /// Local DOFs per element.
+    pub fn dofs(&self) -> usize {
+        3 * self.kind.nodes()
+    }
+
+    /// Position of local node `a` in the unit cube.
+    pub fn node_position(&self, a: usize) -> [f64; 3] {
+        let p = self.kind.order();
+        let n1 = p + 1;
+        [
+            (a % n1) as f64 / p as f64,
+            ((a / n1) % n1) as f64 / p as f64,
+            (a / (n1 * n1)) as f64 / p as f64,
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn apply(e: &UnitElement, mat: &[f64], u: &[f64]) -> Vec<f64> {
+        let n = e.dofs();
+        (0..n)
+            .map(|i| (0..n).map(|j| mat[i * n + j] * u[j]).sum())
+            .collect()
+    }
+
+    fn field(e: &UnitElement, f: impl Fn([f64; 3]) -> [f64; 3]) -> Vec<f64> {
+        (0..e.kind.nodes())
+            .flat_map(|a| f(e.node_position(a)))
+            .collect()
+    }
+
+    #[test]
+    fn rigid_motions_have_no_energy_and_mass_is_the_volume() {
+        for kind in ElementKind::ALL {
+            let e = UnitElement::new(kind, 0.3);
+            let scale = e.stiffness.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for f in [
+                (|_: [f64; 3]| [1.0, 0.0, 0.0]) as fn([f64; 3]) -> [f64; 3],
+                |_| [0.0, 0.0, 1.0],
+                |p| [-p[1], p[0], 0.0],
+                |p| [0.0, -p[2], p[1]],
+                |p| [p[2], 0.0, -p[0]],
+            ] {
+                let u = field(&e, f);
+                let ku = apply(&e, &e.stiffness, &u);
+                let worst = ku.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                // eps * (number of terms) * scale.
+                assert!(worst < 1e-13 * scale * e.dofs() as f64, "{kind:?}: {worst}");
+            }
+            // Translation x: u^T M u = rho * volume = 1.
+            let u = field(&e, |_| [1.0, 0.0, 0.0]);
+            let mu = apply(&e, &e.mass, &u);
+            let mass: f64 = u.iter().zip(&mu).map(|(a, b)| a * b).sum();
+            assert!((mass - 1.0).abs() < 1e-14, "{kind:?}: {mass}");
+        }
+    }
+
+    #[test]
+    fn uniform_strain_energy_is_exact() {
+        // Patch test on one element: u = eps x gives energy vol/2 eps^T D eps for every element.
+        let nu = 0.3;
+        let d = elasticity(nu);
+        // eps_xx = 1e-3, gamma_xy = 2e-3 (u = (1e-3 x + 1e-3 y, 1e-3 x, 0)).
+        let eps = [1e-3, 0.0, 0.0, 2e-3, 0.0, 0.0];
+        let want: f64 = (0..6)
+            .map(|i| (0..6).map(|j| eps[i] * d[i][j] * eps[j]).sum::<f64>())
+            .sum();
+        for kind in ElementKind::ALL {
+            let e = UnitElement::new(kind, nu);
+            let u = field(&e, |p| [1e-3 * p[0] + 1e-3 * p[1], 1e-3 * p[0], 0.0]);
+            let ku = apply(&e, &e.stiffness, &u);
+            let got: f64 = u.iter().zip(&ku).map(|(a, b)| a * b).sum();
+            assert!(
+                (got - want).abs() < 1e-12 * want,
+                "{kind:?}: {got} vs {want}"
+            );
+        }
+    }
+}

@@ -1,0 +1,311 @@
+//! From a solved shape to the modes the banks play: the size- and material-independent
+//! [`ModeBasis`], the scaling laws, and hit-point gains.
+//!
+//! Where it sits: after [`crate::eigen`], before [`crate::modes::ModeSet`]. The expensive part,
+//! [`ModeBasis::solve`], depends only on the voxel pattern, the element and Poisson's ratio; it
+//! is solved once in reference units (`E = 1`, `rho = 1`, voxel edge 1) and cached by shape hash.
+//! The cheap part, [`ModeBasis::voice`], applies a material, a size and a strike.
+//!
+//! Scaling (Deep-Modal, seed 000 eq. 10-12, in the exact form the FEM gives): the physical
+//! matrices are `K = E h K_ref` and `M = rho h^3 M_ref`, so `omega^2 = omega_ref^2 E / (rho h^2)`
+//! (eq. 12: `omega ~ sigma1^(1/2) sigma2^(-1/2) sigma3^(-1)`) and the mass-normalised modes are
+//! `phi = phi_ref / sqrt(rho h^3)` (eq. 10-11's `sigma2^(-1/2) sigma3^(-3/2)`).
+//!
+//! Gains (seed 000 eq. 7): a unit impulse `f` at a surface point excites mode `i` with amplitude
+//! `a_i = phi_i(p) . f / omega_d,i` (the displacement impulse response of a mass-normalised
+//! mode), where `phi_i(p)` interpolates the mode over the struck voxel face with the element's
+//! own shape functions. By linearity any force is the sum of three unit forces (eq. 7, 9).
+
+use crate::eigen::{self, EigenError, EigenOptions, EigenSolution, SolverKind};
+use crate::fem::{ElementKind, FemModel};
+use crate::material::{DampedMode, Material};
+use crate::modes::{ModeError, ModeSet};
+use crate::shape::{ops, ShapeError, VoxelGrid};
+
+/// Nodes with interpolation weights over a struck face, and the face's inward normal.
+type FaceWeights = (Vec<(usize, f64)>, [f64; 3]);
+
+/// A shape's modes in reference units, reusable for any material (same `nu`), size and strike.
+#[derive(Clone, Debug)]
+pub struct ModeBasis {
+    /// [`VoxelGrid::shape_hash`] of the solved grid.
+    pub shape_hash: u64,
+    /// The FEM model (node numbering and positions for hit interpolation).
+    pub model: FemModel,
+    /// The eigen-solution in reference units.
+    pub solution: EigenSolution,
+    /// Face-connected components of the shape.
+    pub components: usize,
+    /// Assembly time, ms.
+    pub assemble_ms: f64,
+    /// Solver used.
+    pub solver: SolverKind,
+}
+
+/// Why a shape could not be solved.
+#[derive(Debug, thiserror::Error)]
+pub enum ModalError {
+    /// The shape is unusable.
+    #[error(transparent)]
+    Shape(#[from] ShapeError),
+    /// The eigensolver failed.
+    #[error(transparent)]
+    Eigen(#[from] EigenError),
+    /// The material is not the one the basis was solved for.
+    #[error(
+        "the basis was solved for Poisson's ratio {basis}, the material has {material}: re-solve"
+    )]
+    PoissonMismatch {
+        /// Basis nu.
+        basis: f64,
+        /// Material nu.
+        material: f64,
+    },
+    /// The resulting mode set is invalid (every mode overdamped, say).
+    #[error("no playable mode: {0}")]
+    Modes(#[from] ModeError),
+    /// Bad strike.
+    #[error("{0}")]
+    BadHit(String),
+}
+
+/// A strike: where and in which direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Point in metres from the grid's minimum corner; snapped to the nearest exposed face.
+    pub point_m: [f64; 3],
+    /// Force direction (normalised internally); `None` pushes into the struck face.
+    pub direction: Option<[f64; 3]>,
+}
+
+/// One voiced mode, with everything a caller may report.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoicedMode {
+    /// Undamped natural frequency, Hz.
+    pub natural_hz: f64,
+    /// Damping outcome.
+    pub damped: DampedMode,
+    /// Impulse amplitude for the strike.
+    pub gain: f64,
+    /// Residual of the eigenpair (seed 001 eq. 6).
+    pub residual: f64,
+}
+
+impl ModeBasis {
+    /// Assembles and solves `grid` in reference units.
+    pub fn solve(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        solver: SolverKind,
+        options: &EigenOptions,
+    ) -> Result<Self, ModalError> {
+        let t = std::time::Instant::now();
+        let model = FemModel::assemble(grid, element, poisson_ratio)?;
+        let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
+        let solution = eigen::solve(&model, solver, options)?;
+        Ok(ModeBasis {
+            shape_hash: grid.shape_hash(),
+            components: ops::components(grid).1,
+            model,
+            solution,
+            assemble_ms,
+            solver,
+        })
+    }
+
+    /// Eigenvalue bound in reference units for "every mode below `fmax_hz`" of this material
+    /// and voxel size (inverse of the scaling law).
+    pub fn reference_bound(material: &Material, voxel_size_m: f64, fmax_hz: f64) -> f64 {
+        let w = std::f64::consts::TAU * fmax_hz;
+        w * w * material.density_kg_m3 * voxel_size_m * voxel_size_m / material.youngs_modulus_pa
+    }
+
+    /// Physical eigenvalues `omega^2` for a material and voxel size (seed 000 eq. 12).
+    pub fn eigenvalues(&self, material: &Material, voxel_size_m: f64) -> Vec<f64> {
+        let s = material.youngs_modulus_pa / (material.density_kg_m3 * voxel_size_m * voxel_size_m);
+        self.solution.eigenvalues.iter().map(|l| l * s).collect()
+    }
+
+    /// Mass-normalised physical mode values at the hit, dotted with the force direction
+    /// (seed 000 eq. 7, 10-11), one per mode.
+    pub fn modal_forces(
+        &self,
+        material: &Material,
+        voxel_size_m: f64,
+        hit: &Hit,
+    ) -> Result<Vec<f64>, ModalError> {
+        let (weights, normal) = self.face_weights(hit, voxel_size_m)?;
+        let dir = match hit.direction {
+            Some(d) => {
+                let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                if !(n.is_finite() && n > 0.0) {
+                    return Err(ModalError::BadHit(format!(
+                        "force direction {d:?} must be a non-zero finite vector"
+                    )));
+                }
+                [d[0] / n, d[1] / n, d[2] / n]
+            }
+            None => normal,
+        };
+        let scale = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
+        let v = &self.solution.vectors;
+        Ok((0..v.ncols())
+            .map(|i| {
+                let col = v.col_as_slice(i);
+                weights
+                    .iter()
+                    .map(|&(node, w)| w * (0..3).map(|c| col[3 * node + c] * dir[c]).sum::<f64>())
+                    .sum::<f64>()
+                    * scale
+            })
+            .collect())
+    }
+
+    /// Applies a material, a voxel size and a strike: every computed mode, damped, with gains.
+    pub fn voice(
+        &self,
+        material: &Material,
+        voxel_size_m: f64,
+        hit: &Hit,
+    ) -> Result<Vec<VoicedMode>, ModalError> {
+        if (material.poisson_ratio - self.model.poisson_ratio).abs() > 1e-12 {
+            return Err(ModalError::PoissonMismatch {
+                basis: self.model.poisson_ratio,
+                material: material.poisson_ratio,
+            });
+        }
+        let lambdas = self.eigenvalues(material, voxel_size_m);
+        let forces = self.modal_forces(material, voxel_size_m, hit)?;
+        Ok(lambdas
+            .iter()
+            .zip(&forces)
+            .zip(&self.solution.residuals)
+            .map(|((&l, &f), &r)| {
+                let damped = material.damping.damp(l);
+                let gain = match damped {
+                    DampedMode::Oscillating { freq_hz, .. } => {
+                        f / (std::f64::consts::TAU * freq_hz)
+                    }
+                    DampedMode::Overdamped { .. } => 0.0,
+                };
+                VoicedMode {
+                    natural_hz: l.sqrt() / std::f64::consts::TAU,
+                    damped,
+                    gain,
+                    residual: r,
+                }
+            })
+            .collect())
+    }
+
+    /// The oscillating modes as a [`ModeSet`] for the banks (overdamped ones are left out).
+    pub fn mode_set(
+        &self,
+        material: &Material,
+        voxel_size_m: f64,
+        hit: &Hit,
+    ) -> Result<ModeSet, ModalError> {
+        let (mut f, mut d, mut g) = (Vec::new(), Vec::new(), Vec::new());
+        for m in self.voice(material, voxel_size_m, hit)? {
+            if let DampedMode::Oscillating {
+                freq_hz,
+                decay_per_s,
+            } = m.damped
+            {
+                f.push(freq_hz);
+                d.push(decay_per_s);
+                g.push(m.gain);
+            }
+        }
+        Ok(ModeSet::new(f, d, g)?)
+    }
+
+    /// Default hit: the exposed face nearest to `(0.37, 0.41, 1.0)` of the bounding box (top,
+    /// off-centre, so that few modes sit on a nodal line), struck along its inward normal.
+    pub fn default_hit(&self, voxel_size_m: f64) -> Hit {
+        let [nx, ny, nz] = self.grid_dims();
+        Hit {
+            point_m: [
+                0.37 * nx as f64 * voxel_size_m,
+                0.41 * ny as f64 * voxel_size_m,
+                nz as f64 * voxel_size_m,
+            ],
+            direction: None,
+        }
+    }
+
+    fn grid_dims(&self) -> [usize; 3] {
+        let p = self.model.kind.order();
+        self.model.lattice.map(|l| (l - 1) / p)
+    }
+
+    /// Nodes and interpolation weights of the exposed face nearest to the hit, and the face's
+    /// inward normal.
+    fn face_weights(&self, hit: &Hit, voxel_size_m: f64) -> Result<FaceWeights, ModalError> {
+        if hit.point_m.iter().any(|c| !c.is_finite()) {
+            return Err(ModalError::BadHit(format!(
+                "hit point {:?} must be finite",
+                hit.point_m
+            )));
+        }
+        let p = hit.point_m.map(|c| c / voxel_size_m);
+        let solid: std::collections::HashSet<[usize; 3]> =
+            self.model.voxels.iter().copied().collect();
+        let is_solid =
+            |v: [isize; 3]| v.iter().all(|&c| c >= 0) && solid.contains(&v.map(|c| c as usize));
+        let mut best: Option<(f64, [usize; 3], usize, isize)> = None;
+        for v in &self.model.voxels {
+            for axis in 0..3 {
+                for side in [-1isize, 1] {
+                    let mut nb = v.map(|c| c as isize);
+                    nb[axis] += side;
+                    if is_solid(nb) {
+                        continue;
+                    }
+                    // Distance from p to the unit face square.
+                    let plane = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
+                    let mut d2 = (p[axis] - plane).powi(2);
+                    for a in (0..3).filter(|&a| a != axis) {
+                        let lo = v[a] as f64;
+                        let c = p[a].clamp(lo, lo + 1.0);
+                        d2 += (p[a] - c).powi(2);
+                    }
+                    if best.is_none_or(|b| d2 < b.0) {
+                        best = Some((d2, *v, axis, side));
+                    }
+                }
+            }
+        }
+        let (_, v, axis, side) =
+            best.ok_or_else(|| ModalError::BadHit("the shape has no surface".into()))?;
+        let order = self.model.kind.order();
+        let others: Vec<usize> = (0..3).filter(|&a| a != axis).collect();
+        let local = |a: usize| (p[a] - v[a] as f64).clamp(0.0, 1.0);
+        let (u, w) = (local(others[0]), local(others[1]));
+        let basis = |t: f64| -> Vec<f64> {
+            if order == 1 {
+                vec![1.0 - t, t]
+            } else {
+                let x = 2.0 * t - 1.0;
+                vec![x * (x - 1.0) / 2.0, 1.0 - x * x, x * (x + 1.0) / 2.0]
+            }
+        };
+        let (bu, bw) = (basis(u), basis(w));
+        let [lx, ly, _] = self.model.lattice;
+        let mut out = Vec::new();
+        for (i, &wu) in bu.iter().enumerate() {
+            for (j, &ww) in bw.iter().enumerate() {
+                let mut l = [order * v[0], order * v[1], order * v[2]];
+                l[axis] += if side > 0 { order } else { 0 };
+                l[others[0]] += i;
+                l[others[1]] += j;
+                let node = self.model.lattice_node[l[0] + lx * (l[1] + ly * l[2])];
+                out.push((node as usize, wu * ww));
+            }
+        }
+        let mut normal = [0.0; 3];
+        normal[axis] = -(side as f64);
+        Ok((out, normal))
+    }
+}

@@ -1,0 +1,247 @@
+//! Voxel objects: what the user sculpts and what the FEM meshes.
+//!
+//! Where it sits: the first stage of the modal pipeline. A [`VoxelGrid`] comes from a primitive
+//! ([`primitives`], parsed from a spec string by [`spec`]), from a MagicaVoxel file ([`vox`]) or
+//! from a closed OBJ/STL mesh ([`mesh`]); boolean operations, hollowing and face-connected
+//! components live in [`ops`]. [`crate::fem`] turns each occupied voxel into one hexahedral
+//! element, so every element is the same cube of edge [`VoxelGrid::voxel_size_m`] (the hexahedral
+//! voxel FEM of NeuralSound, seed 001 sec. 3.1, and Deep-Modal, seed 000 sec. 4.1).
+
+pub mod mesh;
+pub mod ops;
+pub mod primitives;
+pub mod spec;
+pub mod vox;
+
+use std::hash::{Hash, Hasher};
+
+/// Largest number of voxels along any axis a grid may have. A 256^3 solid is ~50 million degrees
+/// of freedom, far past what a modal solve on one machine can factor.
+pub const MAX_GRID_DIM: usize = 256;
+
+/// Largest number of occupied voxels the FEM accepts (a 64^3 solid is 262,144).
+pub const MAX_OCCUPIED_VOXELS: usize = 300_000;
+
+/// A box of cubic voxels, each either solid or empty.
+///
+/// Voxel `(x, y, z)` occupies `[x, x+1] x [y, y+1] x [z, z+1]` times `voxel_size_m`. Storage is
+/// x-fastest: index `x + nx (y + ny z)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoxelGrid {
+    dims: [usize; 3],
+    voxel_size_m: f64,
+    occupied: Vec<bool>,
+}
+
+/// What is wrong with a voxel grid.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ShapeError {
+    /// A dimension is zero.
+    #[error("grid dimensions {0:?} include a zero: every axis needs at least one voxel")]
+    ZeroDimension([usize; 3]),
+    /// A dimension is too large.
+    #[error(
+        "grid dimensions {dims:?} exceed the limit of {MAX_GRID_DIM} voxels per axis: \
+         use a coarser resolution or a larger voxel size"
+    )]
+    TooLarge {
+        /// The offending dimensions.
+        dims: [usize; 3],
+    },
+    /// The voxel edge is not a positive finite length.
+    #[error("voxel size {0} m is not a positive finite length")]
+    BadVoxelSize(f64),
+    /// The occupancy vector does not match the dimensions.
+    #[error("occupancy has {got} entries but dimensions {dims:?} need {want}")]
+    OccupancyLength {
+        /// Dimensions.
+        dims: [usize; 3],
+        /// Entries given.
+        got: usize,
+        /// Entries needed.
+        want: usize,
+    },
+    /// No voxel is occupied.
+    #[error("the shape is empty (no occupied voxel): check its parameters or the input file")]
+    Empty,
+    /// Too many occupied voxels for the solver.
+    #[error(
+        "the shape has {0} occupied voxels, over the limit of {MAX_OCCUPIED_VOXELS}: \
+         use a coarser resolution (larger --voxel-size, lower --fmax)"
+    )]
+    TooManyVoxels(usize),
+}
+
+impl VoxelGrid {
+    /// An empty grid.
+    pub fn new(dims: [usize; 3], voxel_size_m: f64) -> Result<Self, ShapeError> {
+        Self::from_occupancy(dims, voxel_size_m, vec![false; dims.iter().product()])
+    }
+
+    /// A grid from an x-fastest occupancy vector.
+    pub fn from_occupancy(
+        dims: [usize; 3],
+        voxel_size_m: f64,
+        occupied: Vec<bool>,
+    ) -> Result<Self, ShapeError> {
+        if dims.contains(&0) {
+            return Err(ShapeError::ZeroDimension(dims));
+        }
+        if dims.iter().any(|&d| d > MAX_GRID_DIM) {
+            return Err(ShapeError::TooLarge { dims });
+        }
+        if !(voxel_size_m.is_finite() && voxel_size_m > 0.0) {
+            return Err(ShapeError::BadVoxelSize(voxel_size_m));
+        }
+        let want = dims.iter().product();
+        if occupied.len() != want {
+            return Err(ShapeError::OccupancyLength {
+                dims,
+                got: occupied.len(),
+                want,
+            });
+        }
+        Ok(Self {
+            dims,
+            voxel_size_m,
+            occupied,
+        })
+    }
+
+    /// A grid of `dims` filled where `inside(x, y, z)` holds for the voxel's centre, given in
+    /// voxel units (the centre of voxel `(0,0,0)` is `(0.5, 0.5, 0.5)`).
+    pub fn from_fn(
+        dims: [usize; 3],
+        voxel_size_m: f64,
+        inside: impl Fn(f64, f64, f64) -> bool,
+    ) -> Result<Self, ShapeError> {
+        let mut grid = Self::new(dims, voxel_size_m)?;
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let i = grid.index(x, y, z);
+                    grid.occupied[i] = inside(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5);
+                }
+            }
+        }
+        Ok(grid)
+    }
+
+    /// Voxels along x, y, z.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Edge length of one voxel in metres.
+    pub fn voxel_size_m(&self) -> f64 {
+        self.voxel_size_m
+    }
+
+    /// The same occupancy with another voxel edge length.
+    pub fn with_voxel_size(mut self, voxel_size_m: f64) -> Result<Self, ShapeError> {
+        if !(voxel_size_m.is_finite() && voxel_size_m > 0.0) {
+            return Err(ShapeError::BadVoxelSize(voxel_size_m));
+        }
+        self.voxel_size_m = voxel_size_m;
+        Ok(self)
+    }
+
+    /// Linear index of voxel `(x, y, z)`.
+    #[inline]
+    pub fn index(&self, x: usize, y: usize, z: usize) -> usize {
+        x + self.dims[0] * (y + self.dims[1] * z)
+    }
+
+    /// Whether voxel `(x, y, z)` is solid; out-of-range coordinates are empty.
+    #[inline]
+    pub fn get(&self, x: isize, y: isize, z: isize) -> bool {
+        let [nx, ny, nz] = self.dims;
+        if x < 0 || y < 0 || z < 0 || x as usize >= nx || y as usize >= ny || z as usize >= nz {
+            return false;
+        }
+        self.occupied[self.index(x as usize, y as usize, z as usize)]
+    }
+
+    /// Sets voxel `(x, y, z)`.
+    pub fn set(&mut self, x: usize, y: usize, z: usize, solid: bool) {
+        let i = self.index(x, y, z);
+        self.occupied[i] = solid;
+    }
+
+    /// The x-fastest occupancy.
+    pub fn occupancy(&self) -> &[bool] {
+        &self.occupied
+    }
+
+    /// Number of solid voxels.
+    pub fn count(&self) -> usize {
+        self.occupied.iter().filter(|&&o| o).count()
+    }
+
+    /// Coordinates of every solid voxel, in storage order.
+    pub fn solid_voxels(&self) -> Vec<[usize; 3]> {
+        let [nx, ny, _] = self.dims;
+        self.occupied
+            .iter()
+            .enumerate()
+            .filter(|(_, &o)| o)
+            .map(|(i, _)| [i % nx, (i / nx) % ny, i / (nx * ny)])
+            .collect()
+    }
+
+    /// Checks that the grid can be meshed: not empty, not over the voxel limit.
+    pub fn check_solvable(&self) -> Result<(), ShapeError> {
+        match self.count() {
+            0 => Err(ShapeError::Empty),
+            n if n > MAX_OCCUPIED_VOXELS => Err(ShapeError::TooManyVoxels(n)),
+            _ => Ok(()),
+        }
+    }
+
+    /// The grid cropped to the bounding box of its solid voxels (unchanged if empty).
+    pub fn cropped(&self) -> VoxelGrid {
+        let solid = self.solid_voxels();
+        if solid.is_empty() {
+            return self.clone();
+        }
+        let mut lo = [usize::MAX; 3];
+        let mut hi = [0; 3];
+        for v in &solid {
+            for a in 0..3 {
+                lo[a] = lo[a].min(v[a]);
+                hi[a] = hi[a].max(v[a]);
+            }
+        }
+        let dims = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1];
+        let mut out = VoxelGrid {
+            dims,
+            voxel_size_m: self.voxel_size_m,
+            occupied: vec![false; dims.iter().product()],
+        };
+        for v in solid {
+            out.set(v[0] - lo[0], v[1] - lo[1], v[2] - lo[2], true);
+        }
+        out
+    }
+
+    /// A hash of the occupancy pattern and dimensions (not the voxel size): the cache key of a
+    /// shape's mode basis, which is size independent (see [`crate::modal`]).
+    pub fn shape_hash(&self) -> u64 {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        self.dims.hash(&mut h);
+        // Pack occupancy into words so the hash is fast for big grids.
+        for chunk in self.occupied.chunks(64) {
+            let word = chunk
+                .iter()
+                .enumerate()
+                .fold(0u64, |w, (i, &o)| w | ((o as u64) << i));
+            word.hash(&mut h);
+        }
+        h.finish()
+    }
+
+    /// Largest extent of the grid box in metres.
+    pub fn extent_m(&self) -> f64 {
+        *self.dims.iter().max().unwrap() as f64 * self.voxel_size_m
+    }
+}

@@ -1,0 +1,184 @@
+//! Operations on voxel grids: booleans, hollowing, face-connected components.
+
+use super::VoxelGrid;
+use std::collections::VecDeque;
+
+/// The six face neighbours.
+pub const FACE_NEIGHBOURS: [[isize; 3]; 6] = [
+    [1, 0, 0],
+    [-1, 0, 0],
+    [0, 1, 0],
+    [0, -1, 0],
+    [0, 0, 1],
+    [0, 0, -1],
+];
+
+/// Why two grids cannot be combined.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CombineError {
+    /// The placed grid does not fit.
+    #[error("the second shape ({dims:?} voxels at offset {offset:?}) does not fit in the first ({into:?})")]
+    DoesNotFit {
+        /// Dimensions of the placed grid.
+        dims: [usize; 3],
+        /// Offset.
+        offset: [usize; 3],
+        /// Dimensions of the target.
+        into: [usize; 3],
+    },
+}
+
+fn combine(
+    a: &VoxelGrid,
+    b: &VoxelGrid,
+    offset: [usize; 3],
+    op: impl Fn(bool, bool) -> bool,
+) -> Result<VoxelGrid, CombineError> {
+    let (da, db) = (a.dims(), b.dims());
+    if (0..3).any(|i| offset[i] + db[i] > da[i]) {
+        return Err(CombineError::DoesNotFit {
+            dims: db,
+            offset,
+            into: da,
+        });
+    }
+    let mut out = a.clone();
+    for z in 0..db[2] {
+        for y in 0..db[1] {
+            for x in 0..db[0] {
+                let (px, py, pz) = (x + offset[0], y + offset[1], z + offset[2]);
+                let v = op(
+                    a.get(px as isize, py as isize, pz as isize),
+                    b.occupancy()[b.index(x, y, z)],
+                );
+                out.set(px, py, pz, v);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `a` with `b` (placed at `offset` inside `a`'s grid) added.
+pub fn union(a: &VoxelGrid, b: &VoxelGrid, offset: [usize; 3]) -> Result<VoxelGrid, CombineError> {
+    combine(a, b, offset, |p, q| p || q)
+}
+
+/// `a` with `b` (placed at `offset`) carved away.
+pub fn difference(
+    a: &VoxelGrid,
+    b: &VoxelGrid,
+    offset: [usize; 3],
+) -> Result<VoxelGrid, CombineError> {
+    combine(a, b, offset, |p, q| p && !q)
+}
+
+/// Keeps only solid voxels within `wall_voxels` face steps of the outside (an empty voxel or
+/// the grid boundary): a closed shell of that wall thickness. `wall_voxels = 0` keeps nothing.
+pub fn hollow(grid: &VoxelGrid, wall_voxels: usize) -> VoxelGrid {
+    let [nx, ny, nz] = grid.dims();
+    let mut dist = vec![usize::MAX; grid.occupancy().len()];
+    let mut queue = VecDeque::new();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let i = grid.index(x, y, z);
+                let on_boundary =
+                    x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1;
+                if !grid.occupancy()[i] {
+                    dist[i] = 0;
+                    queue.push_back([x, y, z]);
+                } else if on_boundary {
+                    dist[i] = 1;
+                    queue.push_back([x, y, z]);
+                }
+            }
+        }
+    }
+    while let Some([x, y, z]) = queue.pop_front() {
+        let d = dist[grid.index(x, y, z)];
+        for n in FACE_NEIGHBOURS {
+            let (px, py, pz) = (x as isize + n[0], y as isize + n[1], z as isize + n[2]);
+            if grid.get(px, py, pz) {
+                let j = grid.index(px as usize, py as usize, pz as usize);
+                if dist[j] > d + 1 {
+                    dist[j] = d + 1;
+                    queue.push_back([px as usize, py as usize, pz as usize]);
+                }
+            }
+        }
+    }
+    let occ = grid
+        .occupancy()
+        .iter()
+        .zip(&dist)
+        .map(|(&o, &d)| o && d <= wall_voxels)
+        .collect();
+    VoxelGrid::from_occupancy(grid.dims(), grid.voxel_size_m(), occ).expect("same dims")
+}
+
+/// Labels face-connected components of the solid voxels: `(labels, count)`, with label
+/// `usize::MAX` for empty voxels and `0..count` for solid ones.
+pub fn components(grid: &VoxelGrid) -> (Vec<usize>, usize) {
+    let mut label = vec![usize::MAX; grid.occupancy().len()];
+    let mut count = 0;
+    let mut stack = Vec::new();
+    for start in grid.solid_voxels() {
+        let s = grid.index(start[0], start[1], start[2]);
+        if label[s] != usize::MAX {
+            continue;
+        }
+        label[s] = count;
+        stack.push(start);
+        while let Some([x, y, z]) = stack.pop() {
+            for n in FACE_NEIGHBOURS {
+                let (px, py, pz) = (x as isize + n[0], y as isize + n[1], z as isize + n[2]);
+                if grid.get(px, py, pz) {
+                    let j = grid.index(px as usize, py as usize, pz as usize);
+                    if label[j] == usize::MAX {
+                        label[j] = count;
+                        stack.push([px as usize, py as usize, pz as usize]);
+                    }
+                }
+            }
+        }
+        count += 1;
+    }
+    (label, count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(n: usize) -> VoxelGrid {
+        VoxelGrid::from_fn([n; 3], 0.01, |_, _, _| true).unwrap()
+    }
+
+    #[test]
+    fn hollow_cube_keeps_a_shell() {
+        // A 6^3 cube hollowed to 1 voxel keeps 6^3 - 4^3 voxels; to 3 it stays solid.
+        assert_eq!(hollow(&cube(6), 1).count(), 216 - 64);
+        assert_eq!(hollow(&cube(6), 3).count(), 216);
+    }
+
+    #[test]
+    fn components_count_face_connection_only() {
+        // Two cubes touching along an edge are two face-connected components.
+        let mut g = VoxelGrid::new([4, 4, 2], 0.01).unwrap();
+        g.set(0, 0, 0, true);
+        g.set(1, 1, 0, true);
+        g.set(3, 3, 1, true);
+        g.set(3, 2, 1, true);
+        assert_eq!(components(&g).1, 3);
+    }
+
+    #[test]
+    fn union_and_difference() {
+        let a = cube(4);
+        let b = cube(2);
+        assert_eq!(difference(&a, &b, [1, 1, 1]).unwrap().count(), 64 - 8);
+        let empty = VoxelGrid::new([4; 3], 0.01).unwrap();
+        assert_eq!(union(&empty, &b, [2, 2, 2]).unwrap().count(), 8);
+        assert!(union(&empty, &b, [3, 3, 3]).is_err());
+    }
+}

@@ -1,0 +1,161 @@
+//! MagicaVoxel `.vox` import and export (the `dot_vox` crate).
+//!
+//! Import reads the file's first model; every voxel, whatever its colour, is solid. A `.vox`
+//! file carries no physical scale, so the voxel edge comes from the caller (`--voxel-size` or
+//! `--size`). Export writes one model with the default palette, colour index 1.
+
+use super::{ShapeError, VoxelGrid};
+use std::path::Path;
+
+/// Why a `.vox` file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum VoxError {
+    /// The file could not be read or written.
+    #[error("cannot access {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The bytes are not a valid `.vox` file.
+    #[error("{path} is not a valid MagicaVoxel .vox file ({reason})")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The parser's reason.
+        reason: &'static str,
+    },
+    /// The file holds no model.
+    #[error("{0} holds no voxel model")]
+    NoModel(String),
+    /// The grid is too large for the format (256 voxels per axis).
+    #[error("a .vox model holds at most 256 voxels per axis; this grid is {0:?}")]
+    TooLarge([usize; 3]),
+    /// The voxels do not make a valid grid.
+    #[error("{path}: {source}")]
+    Shape {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        source: ShapeError,
+    },
+}
+
+/// Reads the first model of a `.vox` file.
+pub fn read_vox(path: &Path, voxel_size_m: f64) -> Result<VoxelGrid, VoxError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| VoxError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    parse_vox(&bytes, &name, voxel_size_m)
+}
+
+/// Parses `.vox` bytes; `name` labels errors.
+pub fn parse_vox(bytes: &[u8], name: &str, voxel_size_m: f64) -> Result<VoxelGrid, VoxError> {
+    // dot_vox's parser is nom-based; guard against a panic on hostile input all the same.
+    let parsed =
+        std::panic::catch_unwind(|| dot_vox::load_bytes(bytes)).unwrap_or(Err("parser failed"));
+    let data = parsed.map_err(|reason| VoxError::Parse {
+        path: name.to_string(),
+        reason,
+    })?;
+    let model = data
+        .models
+        .first()
+        .ok_or_else(|| VoxError::NoModel(name.to_string()))?;
+    let dims = [
+        model.size.x as usize,
+        model.size.y as usize,
+        model.size.z as usize,
+    ];
+    let shape_err = |source| VoxError::Shape {
+        path: name.to_string(),
+        source,
+    };
+    let mut grid = VoxelGrid::new(dims, voxel_size_m).map_err(shape_err)?;
+    for v in &model.voxels {
+        let (x, y, z) = (v.x as usize, v.y as usize, v.z as usize);
+        if x < dims[0] && y < dims[1] && z < dims[2] {
+            grid.set(x, y, z, true);
+        }
+    }
+    Ok(grid)
+}
+
+/// Encodes a grid as `.vox` bytes.
+pub fn encode_vox(grid: &VoxelGrid) -> Result<Vec<u8>, VoxError> {
+    let dims = grid.dims();
+    if dims.iter().any(|&d| d > 256) {
+        return Err(VoxError::TooLarge(dims));
+    }
+    let voxels = grid
+        .solid_voxels()
+        .into_iter()
+        .map(|[x, y, z]| dot_vox::Voxel {
+            x: x as u8,
+            y: y as u8,
+            z: z as u8,
+            i: 1,
+        })
+        .collect();
+    let data = dot_vox::DotVoxData {
+        version: 150,
+        index_map: (0..=255).collect(),
+        models: vec![dot_vox::Model {
+            size: dot_vox::Size {
+                x: dims[0] as u32,
+                y: dims[1] as u32,
+                z: dims[2] as u32,
+            },
+            voxels,
+        }],
+        palette: dot_vox::DEFAULT_PALETTE.to_vec(),
+        materials: Vec::new(),
+        scenes: Vec::new(),
+        layers: Vec::new(),
+    };
+    let mut out = Vec::new();
+    data.write_vox(&mut out).map_err(|source| VoxError::Io {
+        path: "<memory>".into(),
+        source,
+    })?;
+    Ok(out)
+}
+
+/// Writes a grid to a `.vox` file.
+pub fn write_vox(grid: &VoxelGrid, path: &Path) -> Result<(), VoxError> {
+    let bytes = encode_vox(grid)?;
+    std::fs::write(path, bytes).map_err(|source| VoxError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::primitives::Primitive;
+
+    #[test]
+    fn round_trip_keeps_every_voxel() {
+        let grid = Primitive::Bowl {
+            diameter: 16.0,
+            wall: 2.0,
+        }
+        .rasterize(1.0, 0.01)
+        .unwrap();
+        let bytes = encode_vox(&grid).unwrap();
+        let back = parse_vox(&bytes, "mem", 0.01).unwrap();
+        assert_eq!(back, grid);
+    }
+
+    #[test]
+    fn garbage_is_a_clear_error() {
+        for bytes in [&b""[..], b"VOX ", b"not a vox file at all", &[0xff; 64]] {
+            let e = parse_vox(bytes, "junk.vox", 0.01).unwrap_err();
+            assert!(e.to_string().contains("junk.vox"), "{e}");
+        }
+    }
+}
