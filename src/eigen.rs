@@ -142,6 +142,9 @@ pub enum EigenError {
     /// A non-finite number appeared.
     #[error("the eigensolver produced a non-finite value: the model is ill-conditioned")]
     NonFinite,
+    /// The Krylov basis kept losing rank (it spans nearly the whole space).
+    #[error("the Krylov basis lost rank repeatedly; ask for fewer modes (the object has few degrees of freedom)")]
+    Breakdown,
     /// The request itself is invalid.
     #[error("invalid eigen request: {0}")]
     BadRequest(String),

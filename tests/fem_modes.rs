@@ -201,8 +201,6 @@ fn scaling_laws_equal_a_direct_physical_solve() {
         direction: Some([1.0, 0.2, 0.0]),
     };
     let forces = basis.modal_forces(&brass, h, &hit).unwrap();
-    let grid_h = grid.with_voxel_size(h).unwrap();
-    let _ = grid_h;
     let mut direct_basis = basis.clone();
     direct_basis.solution = direct;
     // The direct vectors are already physical: undo the rescaling the basis would apply.

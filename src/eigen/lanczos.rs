@@ -78,6 +78,9 @@ impl Basis {
     }
 }
 
+/// `(Q, M Q, R)` of a block M-QR factorisation.
+type BlockQr = (Mat<f64>, Mat<f64>, Mat<f64>);
+
 /// M-orthonormalises the columns of `w` (already orthogonal to `basis`) by modified Gram-Schmidt
 /// with reorthogonalisation. Returns `(Q, M Q, R)` with `W = Q R`; a column that is (nearly) in
 /// the span of the others is replaced by a fresh random direction with a zero row in `R`.
@@ -86,7 +89,7 @@ fn block_qr(
     basis: &Basis,
     mut w: Mat<f64>,
     seed: &mut u64,
-) -> (Mat<f64>, Mat<f64>, Mat<f64>) {
+) -> Result<BlockQr, EigenError> {
     let (n, b) = (w.nrows(), w.ncols());
     let mut q = Mat::zeros(n, b);
     let mut mq = Mat::zeros(n, b);
@@ -125,7 +128,10 @@ fn block_qr(
                 break;
             }
             // Breakdown: the Krylov block lost a direction; continue with a random one.
-            assert!(attempt < 2, "random restart vectors keep collapsing");
+            if attempt == 2 {
+                // Three random directions in a row vanished: the basis spans everything.
+                return Err(EigenError::Breakdown);
+            }
             *seed += 1;
             let mut fresh_col = random_block(n, 1, *seed);
             basis.project_out(&mut fresh_col);
@@ -136,7 +142,7 @@ fn block_qr(
             fresh = true;
         }
     }
-    (q, mq, r)
+    Ok((q, mq, r))
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -178,7 +184,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     let mut basis = Basis::new(n, basis_cap(nev, b, n));
     let mut h = Mat::<f64>::zeros(basis.cap(), basis.cap());
     let mut seed = 1u64;
-    let (q, mq, _) = block_qr(&ops, &basis, random_block(n, b, seed), &mut seed);
+    let (q, mq, _) = block_qr(&ops, &basis, random_block(n, b, seed), &mut seed)?;
     basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
     basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
     basis.len = b;
@@ -194,7 +200,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
             llt.solve_in_place(w.as_mut());
             let c = basis.project_out(&mut w);
             h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
-            let (q, mq, r) = block_qr(&ops, &basis, w, &mut seed);
+            let (q, mq, r) = block_qr(&ops, &basis, w, &mut seed)?;
             if basis.len + q.ncols() > basis.cap() {
                 break (q, mq, r, cols);
             }
