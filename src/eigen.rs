@@ -4,7 +4,8 @@
 //! modes. Two solvers share one contract ([`EigenOptions`] in, [`EigenSolution`] or a typed
 //! [`EigenError`] out): shift-invert block Lanczos on a sparse Cholesky factorisation
 //! ([`lanczos`]), and LOBPCG ([`lobpcg`], seed 001 sec. 4.2.4) preconditioned by geometric
-//! multigrid on the voxel grid ([`multigrid`]). Both stop on the residual criterion of
+//! multigrid on the voxel grid ([`multigrid`]); LOBPCG is not written yet (a named stub that
+//! answers with an error). Both stop on the residual criterion of
 //! NeuralSound (seed 001 eq. 6, left term) and report it per mode:
 //! `||K v - lambda M v|| / ((||K|| + |lambda| ||M||) ||v||)`, with the matrix 2-norms bounded by
 //! their infinity norms (symmetric matrices), which makes the test slightly stricter.
