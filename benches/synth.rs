@@ -37,17 +37,6 @@ fn modes(n: usize) -> PlayableModes {
     .0
 }
 
-fn backends() -> Vec<SimdBackend> {
-    [
-        SimdBackend::Avx2Fma,
-        SimdBackend::Portable,
-        SimdBackend::Scalar,
-    ]
-    .into_iter()
-    .filter(|b| b.is_available())
-    .collect()
-}
-
 #[derive(Clone, Copy, PartialEq)]
 enum Bank {
     Oscillator,
@@ -93,7 +82,7 @@ fn criterion_benches(c: &mut Criterion) {
         for &n in &SIZES {
             let m = modes(n);
             group.throughput(Throughput::Elements((n * BLOCK) as u64));
-            for backend in backends() {
+            for backend in SimdBackend::all_available() {
                 let mut render = renderer(bank, &m, backend);
                 let mut out = vec![0f32; BLOCK];
                 group.bench_function(BenchmarkId::new(backend.name(), n), |b| {
@@ -137,7 +126,7 @@ fn table() {
     );
     for bank in [Bank::Oscillator, Bank::Biquad] {
         let mut max_rt: Vec<(SimdBackend, f64)> = vec![];
-        for backend in backends() {
+        for backend in SimdBackend::all_available() {
             let mut worst_large = f64::INFINITY;
             for &n in &SIZES {
                 let rate = throughput(bank, &modes(n), backend);

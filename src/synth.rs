@@ -30,7 +30,6 @@ pub use simd::SimdBackend;
 #[cfg(test)]
 pub(crate) mod test_support {
     use crate::modes::{CullSettings, ModeSet, PlayableModes};
-    use crate::synth::SimdBackend;
 
     /// Playable modes from parallel arrays, with no gain culling.
     pub fn modes(f: &[f64], d: &[f64], g: &[f64], fs: f64) -> PlayableModes {
@@ -43,17 +42,5 @@ pub(crate) mod test_support {
         )
         .unwrap()
         .0
-    }
-
-    /// Every backend this CPU can run.
-    pub fn backends() -> Vec<SimdBackend> {
-        [
-            SimdBackend::Avx2Fma,
-            SimdBackend::Portable,
-            SimdBackend::Scalar,
-        ]
-        .into_iter()
-        .filter(|b| b.is_available())
-        .collect()
     }
 }

@@ -1,7 +1,7 @@
 //! Biquad bank tests: analytic impulse responses and the oscillator bank are the truth.
 
 use super::*;
-use crate::synth::test_support::{backends, modes};
+use crate::synth::test_support::modes;
 use crate::synth::{Excitation, ForcePulse, OscillatorBank};
 
 fn impulse(n: usize) -> Vec<f32> {
@@ -28,7 +28,7 @@ fn impulse_reproduces_the_oscillator_bank() {
     osc.strike(Excitation::Impulse, 1.0).unwrap();
     let mut a = vec![0f32; 48_000];
     osc.render(&mut a);
-    for backend in backends() {
+    for backend in SimdBackend::all_available() {
         let mut bank = BiquadBank::from_modes_with_backend(&m, backend);
         let mut b = vec![0f32; 48_000];
         bank.process(&impulse(48_000), &mut b);
@@ -79,7 +79,7 @@ fn low_mode_at_96_khz_keeps_pitch_and_decay() {
     // to ~1e-5; an f32 direct-form filter misses this by percents.
     let (f, d, fs) = (20.0, 2.0, 96000.0);
     let m = modes(&[f], &[d], &[1.0], fs);
-    for backend in backends() {
+    for backend in SimdBackend::all_available() {
         let mut bank = BiquadBank::from_modes_with_backend(&m, backend);
         let mut y = vec![0f32; 4 * 96_000];
         bank.process(&impulse(y.len()), &mut y);
@@ -124,7 +124,7 @@ fn cascade_equals_the_convolution_of_its_sections() {
     // Plus a second, one-stage branch: parallel branches add.
     let s3 = BiquadCoeffs::modal_resonator(300.0, 5.0, 0.5, fs);
     let h3 = h(s3, n);
-    for backend in backends() {
+    for backend in SimdBackend::all_available() {
         let identity = BiquadCoeffs {
             b0: 1.0,
             b1: 0.0,

@@ -1,7 +1,7 @@
 //! Oscillator bank tests: the analytic damped sine is the truth.
 
 use super::*;
-use crate::synth::test_support::{backends, modes};
+use crate::synth::test_support::modes;
 
 /// q(t) = g e^(-d t) sin(2 pi f t), sampled at n / fs, for an impulse at sample `start`.
 fn analytic(f: f64, d: f64, g: f64, fs: f64, n: usize, start: usize) -> f64 {
@@ -20,7 +20,7 @@ fn no_drift_after_ten_seconds_at_440_hz() {
     let fs = 48000.0;
     for d in [0.0, 0.3] {
         let m = modes(&[440.0], &[d], &[1.0], fs);
-        for backend in backends() {
+        for backend in SimdBackend::all_available() {
             let mut bank = OscillatorBank::with_backend(&m, backend);
             bank.strike(Excitation::Impulse, 1.0).unwrap();
             let mut out = vec![0f32; 480_000];
@@ -58,7 +58,7 @@ fn exact_across_the_band() {
             .collect();
         for &f in &freqs {
             let m = modes(&[f], &[1.0], &[1.0], fs);
-            for backend in backends() {
+            for backend in SimdBackend::all_available() {
                 let mut bank = OscillatorBank::with_backend(&m, backend);
                 bank.strike(Excitation::Impulse, 1.0).unwrap();
                 let mut out = vec![0f32; (2.0 * fs) as usize];
@@ -124,7 +124,7 @@ fn backends_agree() {
         out
     };
     let reference = render(SimdBackend::Scalar);
-    for b in backends() {
+    for b in SimdBackend::all_available() {
         let out = render(b);
         let worst = out
             .iter()
