@@ -27,6 +27,14 @@ fn render_mode_file(modes: &Path, out: &Path, seconds: &str) -> Output {
     ])
 }
 
+/// Writes a mode document (what `demo-modes` or `modes --json` printed) to a file in `dir` and
+/// renders it for `seconds`.
+fn render_printed_modes(dir: &Path, printed: &[u8], seconds: &str) -> Output {
+    let modes = dir.join("printed.json");
+    std::fs::write(&modes, printed).unwrap();
+    render_mode_file(&modes, &dir.join("printed.wav"), seconds)
+}
+
 fn read_wav(path: &Path) -> (hound::WavSpec, Vec<f32>) {
     let mut r = hound::WavReader::open(path).expect("a readable WAV");
     let spec = r.spec();
@@ -301,10 +309,7 @@ fn demo_modes_round_trip_through_a_file() {
     let dir = tempfile::tempdir().unwrap();
     let o = modalforge(&["demo-modes"]);
     assert!(o.status.success());
-    let modes = dir.path().join("bar.json");
-    std::fs::write(&modes, &o.stdout).unwrap();
-    let out = dir.path().join("bar.wav");
-    let o = render_mode_file(&modes, &out, "0.2");
+    let o = render_printed_modes(dir.path(), &o.stdout, "0.2");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
@@ -363,10 +368,7 @@ fn modes_json_reports_the_solve_and_feeds_render() {
     let timo = common::timoshenko(7.0e10, 2700.0, 0.33, 0.32, 0.02, 0.02, 1)[0] / TAU;
     assert!((f[0] - timo).abs() < 0.02 * timo, "{} vs {timo}", f[0]);
     // The report is a mode file: render reads it.
-    let path = dir.path().join("bar.json");
-    std::fs::write(&path, &o.stdout).unwrap();
-    let out = dir.path().join("bar.wav");
-    let r = render_mode_file(&path, &out, "0.3");
+    let r = render_printed_modes(dir.path(), &o.stdout, "0.3");
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
 
