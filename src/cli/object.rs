@@ -228,32 +228,25 @@ impl Object {
                 if let Some(w) = hollow {
                     grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
                 }
-                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
-                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
-                grid.with_voxel_size(h).map_err(ModalError::from)?
+                grid
             }
-            ShapeSpec::Vox(path) => {
-                let grid = vox::read_vox(path, 1.0)?;
-                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
-                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
-                grid.with_voxel_size(h).map_err(ModalError::from)?
-            }
+            ShapeSpec::Vox(path) => vox::read_vox(path, 1.0)?,
             ShapeSpec::Mesh(path) => {
                 let m = mesh::read_mesh(path)?;
                 let name = path.display().to_string();
                 let r = match resolution(1.0, 0.05)? {
                     Some(r) => r,
-                    None if fmax_hz.is_some() => {
-                        auto_resolution(&material, element, size_m, 0.05, fmax_hz.unwrap())
+                    None => {
+                        fmax_hz.map_or(32, |f| auto_resolution(&material, element, size_m, 0.05, f))
                     }
-                    None => 32,
                 };
-                let grid = mesh::voxelize(&m, r, &name)?;
-                let longest_vox = *grid.dims().iter().max().unwrap() as f64;
-                let h = args.voxel_size.unwrap_or(size_m / longest_vox);
-                grid.with_voxel_size(h).map_err(ModalError::from)?
+                mesh::voxelize(&m, r, &name)?
             }
         };
+        // Physical scale: --voxel-size, else --size over the grid's longest side.
+        let longest_vox = *grid.dims().iter().max().unwrap() as f64;
+        let h = args.voxel_size.unwrap_or(size_m / longest_vox);
+        let grid = grid.with_voxel_size(h).map_err(ModalError::from)?;
         grid.check_solvable().map_err(ModalError::from)?;
         Ok(Object {
             grid,

@@ -3,7 +3,8 @@
 //! The mesh is read with `tobj` (OBJ) or `stl_io` (STL, ASCII or binary), vertices are welded by
 //! exact position, and the mesh must be closed: every edge shared by exactly two triangles.
 //! A voxel is solid when its centre is inside, decided by ray parity along +z through each
-//! column of voxel centres. Mesh units are metres; `--size` rescales.
+//! column of voxel centres. The grid keeps the mesh's units as its voxel size; the CLI then
+//! rescales the object to `--size` (or `--voxel-size`).
 
 use super::{ShapeError, VoxelGrid};
 use std::collections::HashMap;
