@@ -152,6 +152,7 @@ pub enum EigenError {
 }
 
 /// Borrowed `K`, `M` and their norms: what both solvers work on.
+#[derive(Clone, Copy)]
 pub struct Operators<'a> {
     /// Pattern.
     pub pattern: &'a BlockPattern,
@@ -170,7 +171,11 @@ pub struct Operators<'a> {
 impl<'a> Operators<'a> {
     /// Views a model's matrices.
     pub fn new(model: &'a FemModel) -> Self {
-        let (p, k, m) = (&model.pattern, &model.k[..], &model.m[..]);
+        Self::from_parts(&model.pattern, &model.k, &model.m)
+    }
+
+    /// Views `K` and `M` given as node blocks on one pattern.
+    pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [[f64; 9]]) -> Self {
         Operators {
             pattern: p,
             k,
@@ -277,12 +282,22 @@ pub(crate) fn sym_eigen(h: &Mat<f64>) -> Result<(Vec<f64>, Mat<f64>), EigenError
     Ok(((0..n).map(|i| s[i]).collect(), evd.U().to_owned()))
 }
 
+/// Which converged pairs a solve returns.
+pub(crate) struct Selection {
+    /// Indices into the pairs: non-rigid, within the count.
+    pub keep: Vec<usize>,
+    /// Rigid-body modes among the pairs.
+    pub rigid: usize,
+    /// Whether the request is met: `k` non-rigid modes, or a converged mode above the bound.
+    pub complete: bool,
+}
+
 /// Picks the converged pairs to return: drops rigid modes, applies the count.
 pub(crate) fn select(
     ops: &Operators,
     pairs: &[(f64, usize, f64)], // (lambda, column, residual), ascending, all converged
     count: ModeCount,
-) -> (Vec<usize>, usize) {
+) -> Selection {
     let rigid = pairs.iter().filter(|p| ops.is_rigid(p.0)).count();
     let keep: Vec<usize> = pairs
         .iter()
@@ -294,9 +309,36 @@ pub(crate) fn select(
         })
         .map(|(i, _)| i)
         .collect();
-    let keep = match count {
-        ModeCount::First(k) => keep.into_iter().take(k).collect(),
-        ModeCount::Below(_) => keep,
+    let (keep, complete) = match count {
+        ModeCount::First(k) => (keep.into_iter().take(k).collect::<Vec<_>>(), false),
+        ModeCount::Below(limit) => {
+            let above = pairs.iter().any(|p| p.0 > limit && !ops.is_rigid(p.0));
+            (keep, above)
+        }
     };
-    (keep, rigid)
+    let complete = complete || matches!(count, ModeCount::First(k) if keep.len() >= k);
+    Selection {
+        keep,
+        rigid,
+        complete,
+    }
+}
+
+/// The solution made of the selected pairs; `x` holds the pairs' vectors by column.
+pub(crate) fn solution(
+    pairs: &[(f64, usize, f64)],
+    selection: &Selection,
+    x: faer::MatRef<'_, f64>,
+    timings: SolveTimings,
+    iterations: usize,
+) -> EigenSolution {
+    let keep = &selection.keep;
+    EigenSolution {
+        eigenvalues: keep.iter().map(|&i| pairs[i].0).collect(),
+        vectors: Mat::from_fn(x.nrows(), keep.len(), |i, j| x[(i, pairs[keep[j]].1)]),
+        residuals: keep.iter().map(|&i| pairs[i].2).collect(),
+        rigid_modes: selection.rigid,
+        timings,
+        iterations,
+    }
 }

@@ -89,50 +89,12 @@ impl FemModel {
                 }
             }
         }
-        // Pattern: each node's neighbours are the nodes of the elements around it.
         let nodes = node_lattice.len();
-        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nodes];
-        for e in elements.chunks_exact(nloc) {
-            for &a in e {
-                rows[a as usize].extend_from_slice(e);
-            }
-        }
-        let mut row_ptr = Vec::with_capacity(nodes + 1);
-        let mut col = Vec::new();
-        row_ptr.push(0);
-        for r in rows.iter_mut() {
-            r.sort_unstable();
-            r.dedup();
-            col.extend_from_slice(r);
-            row_ptr.push(col.len());
-        }
-        drop(rows);
-        let pattern = BlockPattern { row_ptr, col };
+        let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
         let mut k = vec![[0.0; 9]; pattern.col.len()];
         let mut m = vec![[0.0; 9]; pattern.col.len()];
-        let ndof = 3 * nloc;
-        let mut slots = vec![0usize; nloc * nloc];
-        for e in elements.chunks_exact(nloc) {
-            for (i, &a) in e.iter().enumerate() {
-                for (j, &b) in e.iter().enumerate() {
-                    slots[i * nloc + j] = pattern
-                        .find(a as usize, b)
-                        .expect("pattern holds every element pair");
-                }
-            }
-            for i in 0..nloc {
-                for j in 0..nloc {
-                    let s = slots[i * nloc + j];
-                    for c in 0..3 {
-                        for d in 0..3 {
-                            let off = (3 * i + c) * ndof + 3 * j + d;
-                            k[s][3 * c + d] += unit.stiffness[off];
-                            m[s][3 * c + d] += unit.mass[off];
-                        }
-                    }
-                }
-            }
-        }
+        let unit_matrices = (&unit.stiffness[..], &unit.mass[..]);
+        sparse::add_elements(&pattern, &elements, nloc, |_| unit_matrices, &mut k, &mut m);
         Ok(FemModel {
             kind,
             poisson_ratio,

@@ -8,6 +8,9 @@ fn main() -> ExitCode {
     std::panic::set_hook(Box::new(|info| {
         eprintln!("error: internal error (please report): {info}");
     }));
+    // The solvers are written for one core (the plugin solves on one worker thread); faer's
+    // dense helpers would otherwise spin a thread pool for small products.
+    faer::set_global_parallelism(faer::Par::Seq);
     let cli = match modalforge::cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version

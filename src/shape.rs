@@ -198,6 +198,19 @@ impl VoxelGrid {
         }
     }
 
+    /// Every voxel split into `factor^3` voxels of edge `voxel_size_m / factor`: the same
+    /// staircased object on a finer mesh (what a converged reference solves).
+    pub fn split(&self, factor: usize) -> Result<VoxelGrid, ShapeError> {
+        let dims = self.dims.map(|d| d * factor.max(1));
+        if factor == 0 || dims.iter().any(|&d| d > MAX_GRID_DIM) {
+            return Err(ShapeError::TooLarge { dims });
+        }
+        let f = factor as f64;
+        VoxelGrid::from_fn(dims, self.voxel_size_m / f, |x, y, z| {
+            self.get((x / f) as isize, (y / f) as isize, (z / f) as isize)
+        })
+    }
+
     /// The grid cropped to the bounding box of its solid voxels (unchanged if empty).
     pub fn cropped(&self) -> VoxelGrid {
         let solid = self.solid_voxels();

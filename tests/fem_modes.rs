@@ -141,37 +141,6 @@ fn refining_the_grid_lowers_the_error() {
     );
 }
 
-fn two_cubes(offset: [usize; 3]) -> VoxelGrid {
-    let mut g = VoxelGrid::new([5, 5, 5], 1.0).unwrap();
-    for z in 0..2 {
-        for y in 0..2 {
-            for x in 0..2 {
-                g.set(x, y, z, true);
-                g.set(x + offset[0], y + offset[1], z + offset[2], true);
-            }
-        }
-    }
-    g
-}
-
-#[test]
-fn rigid_modes_are_found_numerically() {
-    // Sharing a face: one body (6). Along an edge: a hinge (7). At a corner: a ball joint (9).
-    // Apart: two bodies (12). Counted from eigenvalues, never from parts.
-    for (offset, want) in [
-        ([2, 0, 0], 6),
-        ([2, 2, 0], 7),
-        ([2, 2, 2], 9),
-        ([3, 3, 3], 12),
-    ] {
-        let model =
-            FemModel::assemble(&two_cubes(offset), ElementKind::Hex8Incompatible, NU).unwrap();
-        let sol = eigen::solve(&model, SolverKind::Lanczos, &options(4)).unwrap();
-        assert_eq!(sol.rigid_modes, want, "offset {offset:?}");
-        assert!(sol.eigenvalues[0] > 1e-6, "{:?}", sol.eigenvalues);
-    }
-}
-
 #[test]
 fn scaling_laws_equal_a_direct_physical_solve() {
     // An asymmetric blob (no repeated eigenvalues), solved once in reference units and rescaled

@@ -49,6 +49,10 @@ pub struct ObjectArgs {
     /// [default: the shape's own; auto for meshes].
     #[arg(long, value_name = "N|auto")]
     pub resolution: Option<String>,
+    /// Split every voxel into N x N x N smaller ones: the same staircased object on a finer
+    /// mesh (a convergence check; costs about N^3 more).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub split: usize,
     /// Finite element: hex8i (default: trilinear with incompatible modes, no locking), hex27
     /// (quadratic, most accurate) or hex8 (plain trilinear, the papers' reference; stiff).
     #[arg(long, value_name = "NAME", default_value = "hex8i")]
@@ -247,6 +251,16 @@ impl Object {
         let longest_vox = *grid.dims().iter().max().unwrap() as f64;
         let h = args.voxel_size.unwrap_or(size_m / longest_vox);
         let grid = grid.with_voxel_size(h).map_err(ModalError::from)?;
+        if !(1..=8).contains(&args.split) {
+            return Err(ObjectError::Option(format!(
+                "--split {} must be a whole number from 1 to 8",
+                args.split
+            )));
+        }
+        let grid = match args.split {
+            1 => grid,
+            n => grid.split(n).map_err(ModalError::from)?,
+        };
         grid.check_solvable().map_err(ModalError::from)?;
         Ok(Object {
             grid,

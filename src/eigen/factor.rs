@@ -3,6 +3,7 @@
 //! allocated once and reused (solves in the Lanczos loop allocate nothing of size `nnz(L)`).
 
 use super::EigenError;
+use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, sparse, FemModel};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
@@ -27,9 +28,31 @@ pub struct ShiftedCholesky {
 impl ShiftedCholesky {
     /// Factors `K - shift M` of `model`; `max_rhs` bounds the columns of later solves.
     pub fn new(model: &FemModel, shift: f64, max_rhs: usize, par: Par) -> Result<Self, EigenError> {
-        let fail = |e: &dyn std::fmt::Debug| EigenError::Factorization(format!("{e:?}"));
-        let a = sparse::shifted_upper_csc(&model.pattern, &model.k, &model.m, shift);
         let nodes = ordering::nested_dissection(model);
+        Self::from_blocks(
+            &model.pattern,
+            &model.k,
+            &model.m,
+            shift,
+            &nodes,
+            max_rhs,
+            par,
+        )
+    }
+
+    /// Factors `K - shift M` given as node blocks, eliminating nodes in the order `nodes`
+    /// (`nodes[k]` is the node eliminated `k`-th).
+    pub fn from_blocks(
+        pattern: &BlockPattern,
+        k: &[[f64; 9]],
+        m: &[[f64; 9]],
+        shift: f64,
+        nodes: &[usize],
+        max_rhs: usize,
+        par: Par,
+    ) -> Result<Self, EigenError> {
+        let fail = |e: &dyn std::fmt::Debug| EigenError::Factorization(format!("{e:?}"));
+        let a = sparse::shifted_upper_csc(pattern, k, m, shift);
         let n = a.nrows();
         // fwd[k] = the DOF eliminated k-th; inv is its inverse.
         let fwd: Vec<usize> = nodes

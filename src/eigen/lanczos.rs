@@ -14,7 +14,8 @@
 
 use super::factor::ShiftedCholesky;
 use super::{
-    random_block, select, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
+    random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount,
+    Operators,
 };
 use crate::fem::FemModel;
 use faer::{Mat, Par};
@@ -164,12 +165,27 @@ fn basis_cap(nev: usize, b: usize, n: usize) -> usize {
 /// Runs the solver (see the module docs).
 pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, EigenError> {
     let ops = Operators::new(model);
-    let n = ops.dofs();
     let t0 = Instant::now();
     let shift = -SHIFT_RELATIVE * ops.scale;
-    let b = options.block_size.min(n);
+    let b = options.block_size.min(ops.dofs());
     let mut llt = ShiftedCholesky::new(model, shift, b, Par::Seq)?;
-    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut solution = run(&ops, &mut llt, shift, options)?;
+    solution.timings.setup_ms = t0.elapsed().as_secs_f64() * 1e3 - solution.timings.iterate_ms;
+    Ok(solution)
+}
+
+/// The iteration on an existing factorisation `llt` of `K - shift M` (sized for at least
+/// `options.block_size` right-hand sides); `setup_ms` of the result is zero.
+pub fn run(
+    ops: &Operators,
+    llt: &mut ShiftedCholesky,
+    shift: f64,
+    options: &EigenOptions,
+) -> Result<EigenSolution, EigenError> {
+    let ops = *ops;
+    let n = ops.dofs();
+    let b = options.block_size.min(n);
+    let setup_ms = 0.0;
     let t1 = Instant::now();
 
     let mut nev = match options.count {
@@ -233,25 +249,15 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
             pairs.push((lambda, j, res));
         }
         converged_count = pairs.len();
-        let (keep, rigid) = select(&ops, &pairs, options.count);
-        let done = match options.count {
-            ModeCount::First(k) => keep.len() >= k,
-            ModeCount::Below(limit) => pairs.iter().any(|p| p.0 > limit && !ops.is_rigid(p.0)),
-        };
-        if done {
-            let vectors = Mat::from_fn(n, keep.len(), |i, j| x[(i, pairs[keep[j]].1)]);
-            return Ok(EigenSolution {
-                eigenvalues: keep.iter().map(|&i| pairs[i].0).collect(),
-                vectors,
-                residuals: keep.iter().map(|&i| pairs[i].2).collect(),
-                rigid_modes: rigid,
-                timings: super::SolveTimings {
-                    setup_ms,
-                    iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
-                },
-                iterations: restart,
-            });
+        let sel = select(&ops, &pairs, options.count);
+        if sel.complete {
+            let timings = super::SolveTimings {
+                setup_ms,
+                iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
+            };
+            return Ok(solution(&pairs, &sel, x.as_ref(), timings, restart));
         }
+        let rigid = sel.rigid;
         // Not done: how many pairs are wanted now that the rigid count is known?
         nev = match options.count {
             ModeCount::First(k) => nev.max(rigid + k),

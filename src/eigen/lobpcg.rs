@@ -1,11 +1,474 @@
-//! LOBPCG (seed 001 sec. 4.2.4). Not yet written: answers with an error.
+//! LOBPCG (Knyazev 2001; NeuralSound, seed 001 sec. 4.2.4) preconditioned by geometric
+//! multigrid ([`super::multigrid`]).
+//!
+//! Where it sits: the iterative alternative to [`super::lanczos`] behind [`super::solve`]; it
+//! needs no factorisation of the fine matrix, only products with `K` and `M` and one V-cycle
+//! per residual block, so its memory grows linearly with the object.
+//!
+//! The method. A block `X` of `m` vectors (the wanted modes, the rigid-body modes and a few
+//! guard vectors that speed up the last wanted one) is improved by Rayleigh-Ritz on the span of
+//! `[X, W, P]`: `W = T R` the preconditioned residuals `R = K X - M X Theta` and `P` the previous
+//! step. Converged columns stop contributing to `W` and `P` (soft locking). The Rayleigh-Ritz
+//! step uses both Gram matrices and drops near-dependent directions of the `M`-Gram matrix after
+//! a diagonal scaling (Hetmaniuk and Lehoucq 2006; Duersch et al. 2018), which keeps it stable
+//! when residuals become tiny.
+//!
+//! The start is nested: the coarsest multigrid level's Galerkin problem is solved by shift-invert
+//! Lanczos (with the factor the V-cycle already holds), its modes are interpolated to the fine
+//! grid, and the six rigid-body fields of the object are added exactly. The coarse solution also
+//! says how many rigid modes and (for "modes below f_max") how many modes to expect; the block
+//! grows if the fine problem turns out to have more.
 
-use super::{EigenError, EigenOptions, EigenSolution};
+use super::multigrid::Multigrid;
+use super::{
+    lanczos, random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution,
+    ModeCount, Operators, SolveTimings,
+};
+use crate::fem::sparse::{self, RowBlock};
 use crate::fem::FemModel;
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use std::time::Instant;
 
-/// Placeholder until the multigrid-preconditioned LOBPCG lands.
-pub fn solve(_model: &FemModel, _options: &EigenOptions) -> Result<EigenSolution, EigenError> {
-    Err(EigenError::BadRequest(
-        "the LOBPCG solver is not built yet; use --solver lanczos".into(),
-    ))
+/// Columns per V-cycle (the multigrid scratch is sized for this many).
+const MG_WIDTH: usize = 32;
+
+/// Directions of the scaled `M`-Gram matrix with eigenvalue below this fraction of its largest
+/// are dropped from the Rayleigh-Ritz basis.
+const GRAM_DROP: f64 = 1e-12;
+
+/// A run that has not lowered its worst wanted residual by 10 % in this many iterations has
+/// stagnated (LOBPCG's Gram matrices limit its attainable residual to about 1e-8 of `||K||`):
+/// it stops with `NoConvergence` instead of spending the whole iteration budget.
+const STAGNATION_ITERATIONS: usize = 15;
+
+/// Tolerance of the coarse Lanczos solve that seeds the block: a start, not an answer.
+const COARSE_TOLERANCE: f64 = 1e-5;
+
+/// Guard vectors for `need` wanted ones.
+fn guard(need: usize) -> usize {
+    (need / 4).max(4)
+}
+
+/// A block of vectors with their `K` and `M` images, row-major with a fixed row stride.
+struct Images {
+    x: Vec<f64>,
+    kx: Vec<f64>,
+    mx: Vec<f64>,
+    width: usize,
+    cap: usize,
+}
+
+impl Images {
+    fn new(n: usize, cap: usize) -> Self {
+        Images {
+            x: vec![0.0; n * cap],
+            kx: vec![0.0; n * cap],
+            mx: vec![0.0; n * cap],
+            width: 0,
+            cap,
+        }
+    }
+
+    fn layout(&self) -> RowBlock {
+        RowBlock {
+            width: self.width,
+            stride: self.cap,
+        }
+    }
+
+    fn refresh(&mut self, ops: &Operators) {
+        let l = self.layout();
+        if l.width == 0 {
+            return;
+        }
+        sparse::spmm(ops.pattern, ops.k, &self.x, &mut self.kx, l);
+        sparse::spmm(ops.pattern, ops.m, &self.x, &mut self.mx, l);
+    }
+}
+
+fn view(buf: &[f64], l: RowBlock) -> MatRef<'_, f64> {
+    let n = buf.len() / l.stride;
+    MatRef::from_row_major_slice_with_stride(buf, n, l.width, l.stride)
+}
+
+fn view_mut(buf: &mut [f64], l: RowBlock) -> MatMut<'_, f64> {
+    let n = buf.len() / l.stride;
+    // Not `from_row_major_slice_with_stride_mut`: in faer 0.24 it builds a column-major view
+    // (row stride 1, column stride `row_stride`). The transposed column-major view is right.
+    MatMut::from_column_major_slice_with_stride_mut(buf, l.width, n, l.stride).transpose_mut()
+}
+
+/// Rayleigh-Ritz on the span of `blocks`: the lowest `want` Ritz values and the coefficient
+/// matrix (`sum of widths` x `want`).
+fn rayleigh_ritz(blocks: &[&Images], want: usize) -> Result<(Vec<f64>, Mat<f64>), EigenError> {
+    let widths: Vec<usize> = blocks.iter().map(|b| b.width).collect();
+    let s: usize = widths.iter().sum();
+    let mut gk = Mat::<f64>::zeros(s, s);
+    let mut gm = Mat::<f64>::zeros(s, s);
+    let mut r0 = 0;
+    for (i, bi) in blocks.iter().enumerate() {
+        let mut c0 = r0;
+        for bj in &blocks[i..] {
+            let (ri, cj) = (r0..r0 + bi.width, c0..c0 + bj.width);
+            let xi = view(&bi.x, bi.layout());
+            let k = xi.transpose() * view(&bj.kx, bj.layout());
+            let m = xi.transpose() * view(&bj.mx, bj.layout());
+            gk.as_mut().get_mut(ri.clone(), cj.clone()).copy_from(&k);
+            gm.as_mut().get_mut(ri.clone(), cj.clone()).copy_from(&m);
+            gk.as_mut()
+                .get_mut(cj.clone(), ri.clone())
+                .copy_from(k.transpose());
+            gm.as_mut().get_mut(cj, ri).copy_from(m.transpose());
+            c0 += bj.width;
+        }
+        r0 += bi.width;
+    }
+    // Scale to unit diagonal, then keep the well-conditioned directions of the M-Gram matrix.
+    let d: Vec<f64> = (0..s)
+        .map(|i| {
+            let g = gm[(i, i)];
+            if g > 0.0 && g.is_finite() {
+                1.0 / g.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let scaled = Mat::from_fn(s, s, |i, j| d[i] * gm[(i, j)] * d[j]);
+    let (sigma, u) = sym_eigen(&scaled)?;
+    let top = sigma.last().copied().unwrap_or(0.0);
+    let keep: Vec<usize> = (0..s).filter(|&j| sigma[j] > GRAM_DROP * top).collect();
+    if keep.len() < want {
+        return Err(EigenError::Breakdown);
+    }
+    let z = Mat::from_fn(s, keep.len(), |i, j| {
+        d[i] * u[(i, keep[j])] / sigma[keep[j]].sqrt()
+    });
+    let h = z.transpose() * &gk * &z;
+    let (theta, y) = sym_eigen(&h)?;
+    let c = &z * y.get(.., 0..want);
+    Ok((theta[..want].to_vec(), c))
+}
+
+/// `dst = sum_i blocks[i] C[rows_i, cols]` for the vectors and both images.
+fn combine(dst: &mut Images, blocks: &[&Images], c: MatRef<'_, f64>) {
+    dst.width = c.ncols();
+    let l = dst.layout();
+    for which in 0..3 {
+        let out = match which {
+            0 => &mut dst.x,
+            1 => &mut dst.kx,
+            _ => &mut dst.mx,
+        };
+        let mut r0 = 0;
+        for (i, b) in blocks.iter().enumerate() {
+            let src = match which {
+                0 => &b.x,
+                1 => &b.kx,
+                _ => &b.mx,
+            };
+            let accum = if i == 0 { Accum::Replace } else { Accum::Add };
+            matmul(
+                view_mut(out, l),
+                accum,
+                view(src, b.layout()),
+                c.get(r0..r0 + b.width, ..),
+                1.0,
+                Par::Seq,
+            );
+            r0 += b.width;
+        }
+    }
+}
+
+/// The converged state of one LOBPCG run.
+struct Converged {
+    theta: Vec<f64>,
+    x: Images,
+    residuals: Vec<f64>,
+}
+
+/// Per-column residuals of seed 001 eq. 6.
+fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
+    let m = xb.width;
+    let mut r2 = vec![0.0; m];
+    let mut x2 = vec![0.0; m];
+    for i in 0..ops.dofs() {
+        let row = i * xb.cap;
+        for j in 0..m {
+            let r = xb.kx[row + j] - theta[j] * xb.mx[row + j];
+            r2[j] += r * r;
+            x2[j] += xb.x[row + j] * xb.x[row + j];
+        }
+    }
+    (0..m)
+        .map(|j| r2[j].sqrt() / ((ops.k_norm + theta[j].abs() * ops.m_norm) * x2[j].sqrt()))
+        .collect()
+}
+
+/// Iterates from the block `start` (dense, `n x m`) until its first `need` columns converge.
+fn iterate(
+    ops: &Operators,
+    mg: &mut Multigrid,
+    start: &[f64],
+    m: usize,
+    need: usize,
+    options: &EigenOptions,
+    iterations: &mut usize,
+) -> Result<Converged, EigenError> {
+    let n = ops.dofs();
+    let mut xb = Images::new(n, m);
+    xb.x.copy_from_slice(start);
+    xb.width = m;
+    xb.refresh(ops);
+    let (mut theta, c) = rayleigh_ritz(&[&xb], m)?;
+    let mut xt = Images::new(n, m);
+    combine(&mut xt, &[&xb], c.as_ref());
+    std::mem::swap(&mut xb, &mut xt);
+    let mut pb = Images::new(n, m);
+    let mut pt = Images::new(n, m);
+    let mut wb = Images::new(n, m);
+    let mut rbuf = vec![0.0; n * m];
+    let (mut best, mut best_at) = (f64::INFINITY, *iterations);
+    loop {
+        let res = residuals(ops, &xb, &theta);
+        if res.iter().chain(&theta).any(|v| !v.is_finite()) {
+            return Err(EigenError::NonFinite);
+        }
+        if res[..need].iter().all(|&r| r <= options.tolerance) {
+            return Ok(Converged {
+                theta,
+                x: xb,
+                residuals: res,
+            });
+        }
+        let worst = res[..need].iter().cloned().fold(0.0, f64::max);
+        if worst < 0.9 * best {
+            (best, best_at) = (worst, *iterations);
+        }
+        if *iterations >= options.max_iterations || *iterations - best_at >= STAGNATION_ITERATIONS {
+            let converged = res.iter().take_while(|&&r| r <= options.tolerance).count();
+            return Err(EigenError::NoConvergence {
+                converged: converged.min(need),
+                wanted: need,
+                worst_residual: worst,
+            });
+        }
+        *iterations += 1;
+        let active: Vec<usize> = (0..m).filter(|&j| res[j] > options.tolerance).collect();
+        let a = active.len();
+        // Residuals of the active columns, then W = T R.
+        for i in 0..n {
+            let (src, dst) = (i * m, i * a);
+            for (q, &j) in active.iter().enumerate() {
+                rbuf[dst + q] = xb.kx[src + j] - theta[j] * xb.mx[src + j];
+            }
+        }
+        wb.width = a;
+        let wl = wb.layout();
+        mg.apply(&rbuf[..n * a], RowBlock::dense(a), &mut wb.x, wl);
+        // W -= X (M X)^T W: keeps the Gram matrices well conditioned.
+        let coef = view(&xb.mx, xb.layout()).transpose() * view(&wb.x, wl);
+        matmul(
+            view_mut(&mut wb.x, wl),
+            Accum::Add,
+            view(&xb.x, xb.layout()),
+            &coef,
+            -1.0,
+            Par::Seq,
+        );
+        wb.refresh(ops);
+        let blocks: Vec<&Images> = [&xb, &wb, &pb]
+            .into_iter()
+            .filter(|b| b.width > 0)
+            .collect();
+        let (theta_new, c) = rayleigh_ritz(&blocks, m)?;
+        combine(&mut xt, &blocks, c.as_ref());
+        // P: the W and P part of the update, for the active columns.
+        let c_p = Mat::from_fn(c.nrows() - m, a, |i, q| c[(m + i, active[q])]);
+        combine(&mut pt, &blocks[1..], c_p.as_ref());
+        std::mem::swap(&mut xb, &mut xt);
+        std::mem::swap(&mut pb, &mut pt);
+        theta = theta_new;
+    }
+}
+
+/// Dense `n x width` row-major copy of a column-major matrix's columns.
+fn to_rows(mat: MatRef<'_, f64>) -> Vec<f64> {
+    let (n, w) = (mat.nrows(), mat.ncols());
+    let mut out = vec![0.0; n * w];
+    for j in 0..w {
+        for i in 0..n {
+            out[i * w + j] = mat[(i, j)];
+        }
+    }
+    out
+}
+
+/// The six rigid-body fields (translations, rotations about the centroid), row-major `n x 6`.
+fn rigid_fields(model: &FemModel) -> Vec<f64> {
+    let nodes = model.nodes();
+    let mut centre = [0.0; 3];
+    for i in 0..nodes {
+        let p = model.node_position(i);
+        (0..3).for_each(|a| centre[a] += p[a] / nodes as f64);
+    }
+    let mut out = vec![0.0; 3 * nodes * 6];
+    for i in 0..nodes {
+        let p = model.node_position(i);
+        let r = [0, 1, 2].map(|a| p[a] - centre[a]);
+        for c in 0..3 {
+            let row = (3 * i + c) * 6;
+            out[row + c] = 1.0;
+            // Rotation about axis q: (e_q x r)_c.
+            for q in 0..3 {
+                let e = [0, 1, 2].map(|a| if a == q { 1.0 } else { 0.0 });
+                let cross = [
+                    e[1] * r[2] - e[2] * r[1],
+                    e[2] * r[0] - e[0] * r[2],
+                    e[0] * r[1] - e[1] * r[0],
+                ];
+                out[row + 3 + q] = cross[c];
+            }
+        }
+    }
+    out
+}
+
+/// The starting block: how many columns must converge and the block itself (`n x m`).
+struct Start {
+    need: usize,
+    m: usize,
+    block: Vec<f64>,
+}
+
+/// Builds the nested start from the coarsest level (see the module docs).
+fn nested_start(
+    model: &FemModel,
+    mg: &mut Multigrid,
+    options: &EigenOptions,
+) -> Result<Start, EigenError> {
+    let n = model.dofs();
+    let tau = mg.tau();
+    let coarse_count = match options.count {
+        ModeCount::First(k) => ModeCount::First(k + guard(k + 6)),
+        ModeCount::Below(limit) => ModeCount::Below(1.25 * limit),
+    };
+    let coarse_options = EigenOptions {
+        count: coarse_count,
+        tolerance: COARSE_TOLERANCE.max(options.tolerance),
+        ..*options
+    };
+    let coarse = {
+        let cp = mg.coarse_problem();
+        let (pattern, k, m) = (cp.pattern.clone(), cp.k.clone(), cp.m.clone());
+        let ops = Operators::from_parts(&pattern, &k, &m);
+        lanczos::run(&ops, mg.coarse_factor(), -tau, &coarse_options)
+    };
+    let (rigid, vectors, below) = match coarse {
+        Ok(sol) => {
+            let below = match options.count {
+                ModeCount::Below(limit) => sol.eigenvalues.iter().filter(|&&l| l <= limit).count(),
+                ModeCount::First(k) => k,
+            };
+            let w = sol.vectors.ncols();
+            let fine = mg.prolong_from_coarsest(&to_rows(sol.vectors.as_ref()), w);
+            (sol.rigid_modes, Some((fine, w)), below)
+        }
+        // Too small or too hard a coarse problem: start from rigid fields and random vectors.
+        Err(_) => (
+            6,
+            None,
+            match options.count {
+                ModeCount::First(k) => k,
+                ModeCount::Below(_) => 20,
+            },
+        ),
+    };
+    let need = rigid + below.max(1);
+    let m = need + guard(need);
+    let mut block = vec![0.0; n * m];
+    let rig = rigid_fields(model);
+    let mut col = 0;
+    let mut put = |src: &[f64], w: usize, take: usize, col: &mut usize| {
+        for i in 0..n {
+            block[i * m + *col..i * m + *col + take].copy_from_slice(&src[i * w..i * w + take]);
+        }
+        *col += take;
+    };
+    put(&rig, 6, 6.min(m), &mut col);
+    if let Some((fine, w)) = &vectors {
+        let take = (*w).min(m - col.min(m)).min(m.saturating_sub(rigid));
+        put(fine, *w, take, &mut col);
+    }
+    if col < m {
+        let fill = to_rows(random_block(n, m - col, 7).as_ref());
+        put(&fill, m - col, m - col, &mut col);
+    }
+    Ok(Start { need, m, block })
+}
+
+/// Runs the solver (see the module docs).
+pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, EigenError> {
+    let ops = Operators::new(model);
+    let n = ops.dofs();
+    if let ModeCount::First(k) = options.count {
+        if k + 6 > n {
+            return Err(EigenError::TooFewDofs { dofs: n, wanted: k });
+        }
+    }
+    let t0 = Instant::now();
+    let mut mg = Multigrid::new(model, MG_WIDTH)?;
+    let start = nested_start(model, &mut mg, options)?;
+    // A block of 3m vectors must fit well inside the space; tiny models go to the direct solver.
+    if 4 * start.m > n {
+        return lanczos::solve(model, options);
+    }
+    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = Instant::now();
+    let (mut need, mut m, mut block) = (start.need, start.m, start.block);
+    let mut iterations = 0;
+    loop {
+        let done = iterate(&ops, &mut mg, &block, m, need, options, &mut iterations)?;
+        let conv = done
+            .residuals
+            .iter()
+            .take_while(|&&r| r <= options.tolerance)
+            .count();
+        let pairs: Vec<(f64, usize, f64)> = (0..conv)
+            .map(|j| (done.theta[j], j, done.residuals[j]))
+            .collect();
+        let sel = select(&ops, &pairs, options.count);
+        if sel.complete {
+            let timings = SolveTimings {
+                setup_ms,
+                iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
+            };
+            let x = view(&done.x.x, done.x.layout());
+            return Ok(solution(&pairs, &sel, x, timings, iterations));
+        }
+        let rigid = sel.rigid;
+        // More rigid modes than the coarse level showed, or more modes below the bound: grow.
+        let grown = match options.count {
+            ModeCount::First(k) => rigid + k,
+            ModeCount::Below(_) => (need * 3 / 2).max(need + 8),
+        }
+        .min(super::MAX_MODES + 64);
+        let m_new = grown + guard(grown);
+        if grown <= need || 4 * m_new > n {
+            return Err(EigenError::TooFewDofs {
+                dofs: n,
+                wanted: grown,
+            });
+        }
+        let mut next = vec![0.0; n * m_new];
+        let fill = to_rows(random_block(n, m_new - m, 11 + iterations as u64).as_ref());
+        for i in 0..n {
+            next[i * m_new..i * m_new + m].copy_from_slice(&done.x.x[i * m..i * m + m]);
+            next[i * m_new + m..(i + 1) * m_new]
+                .copy_from_slice(&fill[i * (m_new - m)..(i + 1) * (m_new - m)]);
+        }
+        (need, m, block) = (grown, m_new, next);
+    }
 }

@@ -26,9 +26,15 @@ pub fn nested_dissection(model: &FemModel) -> Vec<usize> {
             ]
         })
         .collect();
+    nested_dissection_of(&coords, p)
+}
+
+/// Nested dissection of any node set on a lattice whose element boundaries lie every `p`
+/// lattice steps (`p = 1` for hex8, 2 for hex27); `coords` are lattice coordinates.
+pub fn nested_dissection_of(coords: &[[i64; 3]], p: i64) -> Vec<usize> {
     let mut order = Vec::with_capacity(coords.len());
     let nodes: Vec<usize> = (0..coords.len()).collect();
-    dissect(nodes, &coords, p, &mut order);
+    dissect(nodes, coords, p, &mut order);
     order
 }
 

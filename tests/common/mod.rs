@@ -80,3 +80,18 @@ pub fn timoshenko(e: f64, rho: f64, nu: f64, l: f64, b: f64, h: f64, count: usiz
     }
     roots
 }
+
+/// Two 2x2x2 cubes in a 5x5x5 grid, the second moved by `offset` voxels: sharing a face
+/// (`[2, 0, 0]`), an edge (`[2, 2, 0]`), a corner (`[2, 2, 2]`) or apart (`[3, 3, 3]`).
+pub fn two_cubes(offset: [usize; 3]) -> modalforge::shape::VoxelGrid {
+    let mut g = modalforge::shape::VoxelGrid::new([5, 5, 5], 1.0).unwrap();
+    for z in 0..2 {
+        for y in 0..2 {
+            for x in 0..2 {
+                g.set(x, y, z, true);
+                g.set(x + offset[0], y + offset[1], z + offset[2], true);
+            }
+        }
+    }
+    g
+}

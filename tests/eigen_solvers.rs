@@ -1,0 +1,152 @@
+//! The two eigensolvers against each other and against the identities every eigen-solution
+//! must satisfy: LOBPCG with multigrid (an iterative method on products with K and M) must
+//! reproduce shift-invert Lanczos on a direct factorisation (a different algorithm on a
+//! different operator), and both must return M-orthonormal vectors whose recomputed residuals
+//! (seed 001 eq. 6) meet the tolerance.
+
+use modalforge::eigen::{self, EigenOptions, EigenSolution, ModeCount, SolverKind};
+use modalforge::fem::sparse::{self, RowBlock};
+use modalforge::fem::{ElementKind, FemModel};
+use modalforge::shape::primitives::Primitive;
+use modalforge::shape::VoxelGrid;
+
+mod common;
+use common::two_cubes;
+
+const NU: f64 = 0.3;
+const TOL: f64 = 1e-9;
+
+fn options(count: ModeCount) -> EigenOptions {
+    EigenOptions {
+        count,
+        tolerance: TOL,
+        ..Default::default()
+    }
+}
+
+/// Recomputes `max_j ||K v - lambda M v|| / ((||K|| + lambda ||M||) ||v||)` and
+/// `max |V^T M V - I|` from the returned vectors alone.
+fn identities(model: &FemModel, sol: &EigenSolution) -> (f64, f64) {
+    let n = model.dofs();
+    let k_norm = sparse::norm_inf(&model.pattern, &model.k);
+    let m_norm = sparse::norm_inf(&model.pattern, &model.m);
+    let cols = sol.vectors.ncols();
+    let mut mv = Vec::with_capacity(cols);
+    let mut worst_res = 0.0f64;
+    for j in 0..cols {
+        let v: Vec<f64> = (0..n).map(|i| sol.vectors[(i, j)]).collect();
+        let (mut kv, mut m) = (vec![0.0; n], vec![0.0; n]);
+        sparse::spmm(&model.pattern, &model.k, &v, &mut kv, RowBlock::dense(1));
+        sparse::spmm(&model.pattern, &model.m, &v, &mut m, RowBlock::dense(1));
+        let l = sol.eigenvalues[j];
+        let r = kv
+            .iter()
+            .zip(&m)
+            .map(|(a, b)| (a - l * b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let vn = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        worst_res = worst_res.max(r / ((k_norm + l * m_norm) * vn));
+        mv.push(m);
+    }
+    let mut worst_orth = 0.0f64;
+    for a in 0..cols {
+        for (b, mb) in mv.iter().enumerate() {
+            let dot: f64 = (0..n).map(|i| sol.vectors[(i, a)] * mb[i]).sum();
+            let want = if a == b { 1.0 } else { 0.0 };
+            worst_orth = worst_orth.max((dot - want).abs());
+        }
+    }
+    (worst_res, worst_orth)
+}
+
+fn bowl(d: f64) -> VoxelGrid {
+    Primitive::Bowl {
+        diameter: d,
+        wall: 2.0,
+    }
+    .rasterize(1.0, 1.0)
+    .unwrap()
+}
+
+#[test]
+fn lobpcg_agrees_with_lanczos_and_both_satisfy_the_identities() {
+    let bracket = VoxelGrid::from_fn([16, 12, 4], 1.0, |x, y, _| x < 4.0 || y < 4.0).unwrap();
+    let cases = [
+        (
+            "bar 32x4x4 hex8i",
+            VoxelGrid::from_fn([32, 4, 4], 1.0, |_, _, _| true).unwrap(),
+            ElementKind::Hex8Incompatible,
+        ),
+        ("L bracket hex8", bracket, ElementKind::Hex8),
+        ("bowl d=12 hex27", bowl(12.0), ElementKind::Hex27),
+        (
+            "plate 24x24x1 hex8i",
+            VoxelGrid::from_fn([24, 24, 1], 1.0, |_, _, _| true).unwrap(),
+            ElementKind::Hex8Incompatible,
+        ),
+    ];
+    for (name, grid, kind) in cases {
+        let model = FemModel::assemble(&grid, kind, NU).unwrap();
+        let opts = options(ModeCount::First(12));
+        let lanczos = eigen::solve(&model, SolverKind::Lanczos, &opts).unwrap();
+        let lobpcg = eigen::solve(&model, SolverKind::Lobpcg, &opts).unwrap();
+        assert_eq!(lobpcg.rigid_modes, 6, "{name}");
+        assert_eq!(lobpcg.eigenvalues.len(), 12, "{name}");
+        // Both converged to residual 1e-9 of ||K||: the eigenvalue error is of the order of the
+        // squared residual over the gap, so 1e-7 relative leaves a wide margin while any
+        // missed or spurious mode (a gap of percents) fails.
+        for (a, b) in lanczos.eigenvalues.iter().zip(&lobpcg.eigenvalues) {
+            assert!((a - b).abs() <= 1e-7 * a, "{name}: {a} vs {b}");
+        }
+        for (solver, sol) in [("lanczos", &lanczos), ("lobpcg", &lobpcg)] {
+            let (res, orth) = identities(&model, sol);
+            // The residual is recomputed independently of the solver, so it may differ from the
+            // solver's own by rounding: 2x the tolerance.
+            assert!(res <= 2.0 * TOL, "{name} {solver}: residual {res:e}");
+            assert!(sol.residuals.iter().all(|&r| r <= TOL), "{name} {solver}");
+            // M-orthonormality: Ritz vectors of a Rayleigh-Ritz step are M-orthonormal to
+            // rounding, eps sqrt(n) ~ 1e-13; converged pairs to the residual over the gap.
+            assert!(orth <= 1e-8, "{name} {solver}: orthonormality {orth:e}");
+        }
+    }
+}
+
+#[test]
+fn both_solvers_find_rigid_modes_numerically() {
+    // Sharing a face: one body (6). Along an edge: a hinge (7). At a corner: a ball joint (9).
+    // Apart: two bodies (12). Counted from eigenvalues, never from parts. LOBPCG's coarse
+    // level merges the two cubes, so its fine solve must discover the extra zero modes itself
+    // and grow its block.
+    for solver in [SolverKind::Lanczos, SolverKind::Lobpcg] {
+        for (offset, want) in [
+            ([2, 0, 0], 6),
+            ([2, 2, 0], 7),
+            ([2, 2, 2], 9),
+            ([3, 3, 3], 12),
+        ] {
+            let model =
+                FemModel::assemble(&two_cubes(offset), ElementKind::Hex8Incompatible, NU).unwrap();
+            let sol = eigen::solve(&model, solver, &options(ModeCount::First(4))).unwrap();
+            assert_eq!(sol.rigid_modes, want, "{solver:?} offset {offset:?}");
+            assert_eq!(sol.eigenvalues.len(), 4);
+            assert!(sol.eigenvalues[0] > 1e-6, "{:?}", sol.eigenvalues);
+        }
+    }
+}
+
+#[test]
+fn lobpcg_finds_every_mode_below_a_bound() {
+    let grid = VoxelGrid::from_fn([40, 5, 3], 1.0, |_, _, _| true).unwrap();
+    let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, NU).unwrap();
+    let first = eigen::solve(&model, SolverKind::Lanczos, &options(ModeCount::First(30))).unwrap();
+    // A bound between the 17th and 18th modes (not on a repeated pair).
+    let bound = 0.5 * (first.eigenvalues[16] + first.eigenvalues[17]);
+    for solver in [SolverKind::Lobpcg, SolverKind::Lanczos] {
+        let below = eigen::solve(&model, solver, &options(ModeCount::Below(bound))).unwrap();
+        assert_eq!(below.eigenvalues.len(), 17, "{solver:?}");
+        for (a, b) in below.eigenvalues.iter().zip(&first.eigenvalues) {
+            assert!((a - b).abs() <= 1e-7 * b, "{solver:?}: {a} vs {b}");
+        }
+    }
+}
