@@ -4,8 +4,10 @@
 //! element, solver, strike), solves it and prints its modes; `render` takes a mode file or solves
 //! an object the same way, culls the modes, renders one strike or scrape with
 //! [`crate::synth::render`] and writes a WAV with hound. Every failure is one line on stderr and
-//! a non-zero exit, never a panic.
+//! a non-zero exit, never a panic. `chart` ([`chart`]) sweeps the solvers' speed against their
+//! accuracy.
 
+pub mod chart;
 pub mod object;
 
 use crate::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
@@ -35,6 +37,9 @@ pub enum Command {
     Modes(ModesArgs),
     /// List the material presets.
     Materials,
+    /// Sweep shapes, resolutions, elements, solvers and tolerances; write chart.csv and
+    /// chart.png (frequency error against solve time).
+    Chart(chart::ChartArgs),
     /// Print the analytic Euler-Bernoulli steel bar's modes as JSON (a template for --modes files).
     DemoModes,
 }
@@ -180,6 +185,7 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
     match cli.command {
         Command::DemoModes => Ok(crate::demo::steel_bar().to_json()),
         Command::Materials => Ok(materials_table()),
+        Command::Chart(args) => chart::chart_command(&args),
         Command::Modes(args) => modes_command(&args),
         Command::Render(args) => {
             let json = args.json;

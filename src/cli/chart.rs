@@ -1,0 +1,328 @@
+//! `modalforge chart`: the speed-versus-accuracy sweep, the start of the product's chart.
+//!
+//! Where it sits: a CLI command over [`crate::fem`] and [`crate::eigen`]. It solves benchmark
+//! shapes (a solid sphere, a hemispherical bowl with a wall of 1/16 of its diameter, a plate of
+//! thickness 1/16 of its side; steel, 0.2 m) over voxel resolutions, elements, solvers and
+//! residual tolerances, and writes every run to `chart.csv` and a log-log plot of frequency
+//! error against solve time to `chart.png`. Later methods (the neural predictor) add their
+//! points to the same CSV.
+//!
+//! Error: the mean and the largest relative difference of the lowest [`CHART_MODES`]
+//! frequencies from the shape's reference, which is the same shape solved with quadratic
+//! elements (hex27) at the sweep's reference resolution by Lanczos at residual 1e-9. Points at
+//! the reference resolution measure discretisation error only; coarser points also carry the
+//! staircase's geometric error, which is what a user choosing a resolution pays.
+
+use super::CliError;
+use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
+use crate::fem::{ElementKind, FemModel};
+use crate::material::Material;
+use crate::shape::primitives::Primitive;
+use plotters::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Frequencies compared per run.
+pub const CHART_MODES: usize = 10;
+
+/// Sweep runs whose model has more degrees of freedom than this are skipped (a 48^3 solid
+/// through a direct factorisation takes minutes). References are not capped.
+pub const MAX_CHART_DOFS: usize = 100_000;
+
+/// The bundled font (DejaVu Sans, Bitstream Vera licence, `assets/fonts/`).
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Options of `modalforge chart`.
+#[derive(clap::Args, Debug)]
+pub struct ChartArgs {
+    /// Folder for chart.csv and chart.png (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// A small sweep (resolutions 6 and 8, reference 10) that runs in seconds.
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// One solve of the sweep.
+#[derive(Clone, Debug)]
+pub struct ChartPoint {
+    /// Benchmark shape.
+    pub shape: &'static str,
+    /// Voxels along the longest side.
+    pub resolution: usize,
+    /// Element name.
+    pub element: &'static str,
+    /// Solver name.
+    pub solver: &'static str,
+    /// Residual tolerance.
+    pub tolerance: f64,
+    /// Degrees of freedom.
+    pub dofs: usize,
+    /// Assembly plus solve, milliseconds (one core).
+    pub time_ms: f64,
+    /// Mean relative frequency error, percent.
+    pub mean_error_percent: f64,
+    /// Largest relative frequency error, percent.
+    pub max_error_percent: f64,
+}
+
+fn shape(name: &str, n: usize) -> Primitive {
+    let d = n as f64;
+    match name {
+        "sphere" => Primitive::Sphere { diameter: d },
+        "bowl" => Primitive::Bowl {
+            diameter: d,
+            wall: (d / 16.0).max(1.0),
+        },
+        _ => Primitive::Plate {
+            length: d,
+            width: d,
+            thickness: (d / 16.0).max(1.0),
+        },
+    }
+}
+
+/// The lowest `CHART_MODES` frequencies (Hz) and the time (ms) of one solve.
+fn solve(
+    name: &str,
+    n: usize,
+    kind: ElementKind,
+    solver: SolverKind,
+    tolerance: f64,
+    max_dofs: usize,
+) -> Result<Option<(Vec<f64>, usize, f64)>, CliError> {
+    let fail = |e: &dyn std::fmt::Display| CliError::Option(format!("chart: {name} {n}: {e}"));
+    let steel = Material::parse("steel").map_err(|e| fail(&e))?;
+    let size_m = 0.2;
+    let grid = shape(name, n)
+        .rasterize(1.0, size_m / n as f64)
+        .map_err(|e| fail(&e))?;
+    let t = Instant::now();
+    let model = FemModel::assemble(&grid, kind, steel.poisson_ratio).map_err(|e| fail(&e))?;
+    if model.dofs() > max_dofs {
+        return Ok(None);
+    }
+    let options = EigenOptions {
+        count: ModeCount::First(CHART_MODES),
+        tolerance,
+        ..Default::default()
+    };
+    let sol = eigen::solve(&model, solver, &options).map_err(|e| fail(&e))?;
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let h = grid.voxel_size_m();
+    let scale = steel.youngs_modulus_pa / (steel.density_kg_m3 * h * h);
+    let freqs = sol
+        .eigenvalues
+        .iter()
+        .map(|l| (l * scale).sqrt() / (2.0 * std::f64::consts::PI))
+        .collect();
+    Ok(Some((freqs, model.dofs(), ms)))
+}
+
+/// Runs the sweep; `progress` hears about each point.
+pub fn sweep(
+    quick: bool,
+    mut progress: impl FnMut(&ChartPoint),
+) -> Result<Vec<ChartPoint>, CliError> {
+    let (shapes, resolutions): (&[(&str, usize)], &[usize]) = if quick {
+        (&[("plate", 10), ("bowl", 10)], &[6, 8])
+    } else {
+        (
+            &[("plate", 48), ("bowl", 32), ("sphere", 20)],
+            &[8, 12, 16, 24, 32, 48],
+        )
+    };
+    let runs: &[(ElementKind, SolverKind, f64)] = &[
+        (ElementKind::Hex8, SolverKind::Lanczos, 1e-6),
+        (ElementKind::Hex8Incompatible, SolverKind::Lanczos, 1e-6),
+        (ElementKind::Hex8Incompatible, SolverKind::Lobpcg, 1e-6),
+        (ElementKind::Hex8Incompatible, SolverKind::Lobpcg, 1e-4),
+        (ElementKind::Hex27, SolverKind::Lanczos, 1e-6),
+        (ElementKind::Hex27, SolverKind::Lobpcg, 1e-6),
+    ];
+    let mut points = Vec::new();
+    for &(name, n_ref) in shapes {
+        let (reference, ..) = solve(
+            name,
+            n_ref,
+            ElementKind::Hex27,
+            SolverKind::Lanczos,
+            1e-9,
+            usize::MAX,
+        )?
+        .ok_or_else(|| {
+            CliError::Option(format!(
+                "chart: the {name} reference is over the size limit"
+            ))
+        })?;
+        for &n in resolutions {
+            for &(kind, solver, tolerance) in runs {
+                let Some((freqs, dofs, ms)) =
+                    solve(name, n, kind, solver, tolerance, MAX_CHART_DOFS)?
+                else {
+                    continue;
+                };
+                let errors: Vec<f64> = freqs
+                    .iter()
+                    .zip(&reference)
+                    .map(|(f, r)| 100.0 * (f - r).abs() / r)
+                    .collect();
+                let point = ChartPoint {
+                    shape: name,
+                    resolution: n,
+                    element: kind.name(),
+                    solver: solver.name(),
+                    tolerance,
+                    dofs,
+                    time_ms: ms,
+                    mean_error_percent: errors.iter().sum::<f64>() / errors.len() as f64,
+                    max_error_percent: errors.iter().cloned().fold(0.0, f64::max),
+                };
+                progress(&point);
+                points.push(point);
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// The CSV text of a sweep.
+pub fn to_csv(points: &[ChartPoint]) -> String {
+    let mut out = String::from(
+        "shape,resolution,element,solver,tolerance,dofs,time_ms,mean_error_percent,max_error_percent\n",
+    );
+    for p in points {
+        let _ = writeln!(
+            out,
+            "{},{},{},{},{:e},{},{:.1},{:.4},{:.4}",
+            p.shape,
+            p.resolution,
+            p.element,
+            p.solver,
+            p.tolerance,
+            p.dofs,
+            p.time_ms,
+            p.mean_error_percent,
+            p.max_error_percent
+        );
+    }
+    out
+}
+
+/// Draws the log-log chart of mean error against time: colour per element, marker per solver.
+pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
+    let fail = |e: &dyn std::fmt::Display| {
+        CliError::Option(format!("chart: drawing {}: {e}", path.display()))
+    };
+    plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| CliError::Option("chart: the bundled font is unreadable".into()))?;
+    let clamp = |v: f64| v.max(1e-3);
+    let (t_lo, t_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+        (lo.min(p.time_ms), hi.max(p.time_ms))
+    });
+    let (e_lo, e_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+        (
+            lo.min(clamp(p.mean_error_percent)),
+            hi.max(clamp(p.mean_error_percent)),
+        )
+    });
+    if points.is_empty() {
+        return Err(CliError::Option("chart: no point to draw".into()));
+    }
+    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "ModalForge: mean error of the lowest 10 frequencies vs solve time (one core)",
+            ("sans-serif", 24),
+        )
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(
+            (t_lo * 0.7..t_hi * 1.4).log_scale(),
+            (e_lo * 0.7..e_hi * 1.4).log_scale(),
+        )
+        .map_err(|e| fail(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("assembly + solve time (ms)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.2}"))
+        .y_desc("mean frequency error (%)")
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| fail(&e))?;
+    let colours = [("hex8", RED), ("hex8i", BLUE), ("hex27", GREEN)];
+    for (element, colour) in colours {
+        for solver in ["lanczos", "lobpcg"] {
+            let series: Vec<(f64, f64)> = points
+                .iter()
+                .filter(|p| p.element == element && p.solver == solver)
+                .map(|p| (p.time_ms, clamp(p.mean_error_percent)))
+                .collect();
+            if series.is_empty() {
+                continue;
+            }
+            let label = format!("{element} {solver}");
+            let style = colour.filled();
+            if solver == "lanczos" {
+                chart
+                    .draw_series(series.iter().map(|&(x, y)| Circle::new((x, y), 5, style)))
+                    .map_err(|e| fail(&e))?
+                    .label(label)
+                    .legend(move |(x, y)| Circle::new((x, y), 5, style));
+            } else {
+                chart
+                    .draw_series(
+                        series
+                            .iter()
+                            .map(|&(x, y)| TriangleMarker::new((x, y), 6, style)),
+                    )
+                    .map_err(|e| fail(&e))?
+                    .label(label)
+                    .legend(move |(x, y)| TriangleMarker::new((x, y), 6, style));
+            }
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 16))
+        .draw()
+        .map_err(|e| fail(&e))?;
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+/// Runs `modalforge chart`.
+pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| CliError::Option(format!("cannot create {}: {e}", args.out.display())))?;
+    let points = sweep(args.quick, |p| {
+        eprintln!(
+            "{} {}^3 {} {} tol {:e}: {} dofs, {:.0} ms, mean error {:.3} %",
+            p.shape,
+            p.resolution,
+            p.element,
+            p.solver,
+            p.tolerance,
+            p.dofs,
+            p.time_ms,
+            p.mean_error_percent
+        )
+    })?;
+    let csv = args.out.join("chart.csv");
+    std::fs::write(&csv, to_csv(&points))
+        .map_err(|e| CliError::Option(format!("cannot write {}: {e}", csv.display())))?;
+    let png = args.out.join("chart.png");
+    plot(&points, &png)?;
+    Ok(format!(
+        "wrote {} and {} ({} runs)",
+        csv.display(),
+        png.display(),
+        points.len()
+    ))
+}
