@@ -18,6 +18,9 @@
 //! grid, and the six rigid-body fields of the object are added exactly. The coarse solution also
 //! says how many rigid modes and (for "modes below f_max") how many modes to expect; the block
 //! grows if the fine problem turns out to have more.
+//!
+//! Models too small for a block of `3m` vectors to leave room (fewer than `4m` DOFs) are handed
+//! to the direct solver, which is exact and instant at that size.
 
 use super::multigrid::Multigrid;
 use super::{

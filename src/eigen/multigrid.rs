@@ -140,7 +140,8 @@ impl Multigrid {
             model.lattice_node.clone(),
             fine_coords,
         )];
-        let mut masses = vec![model.m.clone()];
+        // Coarse levels' mass matrices (the fine one is the model's own).
+        let mut masses: Vec<Blocks> = Vec::new();
         let (coarse_k, coarse_m) = loop {
             let (level, k, m) = assemble(&next);
             let nodes = level.coords.len();
@@ -175,8 +176,9 @@ impl Multigrid {
             k: coarse_k,
             m: coarse_m,
         };
-        for (level, m) in levels.iter_mut().zip(masses) {
-            for (a, mb) in level.a.iter_mut().zip(&m) {
+        for (i, level) in levels.iter_mut().enumerate() {
+            let m = if i == 0 { &model.m } else { &masses[i - 1] };
+            for (a, mb) in level.a.iter_mut().zip(m) {
                 for (x, y) in a.iter_mut().zip(mb) {
                     *x += tau * y;
                 }
@@ -218,8 +220,8 @@ impl Multigrid {
         &mut self.factor
     }
 
-    /// Interpolates a block of coarsest-level vectors (`layout` over coarse DOFs) to the fine
-    /// level; returns a dense fine block of the same width.
+    /// Interpolates a dense block of `width` coarsest-level vectors to the fine level; returns a
+    /// dense fine block of the same width.
     pub fn prolong_from_coarsest(&self, coarse: &[f64], width: usize) -> Vec<f64> {
         let mut current = coarse.to_vec();
         for level in self.levels.iter().rev().skip(1) {
@@ -236,7 +238,8 @@ impl Multigrid {
 
     /// `z ~= A^-1 r` by one V-cycle per column; `r` and `z` are fine-level blocks with their
     /// own layouts and the same width (any width: the columns go through in chunks of at most
-    /// the `max_width` the hierarchy was built for).
+    /// the `max_width` the hierarchy was built for). Allocates nothing: the scratch of every
+    /// level was sized when the hierarchy was built.
     pub fn apply(&mut self, r: &[f64], r_layout: RowBlock, z: &mut [f64], z_layout: RowBlock) {
         assert_eq!(r_layout.width, z_layout.width);
         let n = 3 * self.levels[0].coords.len();
@@ -406,7 +409,7 @@ impl Level {
             self.residual(b);
             let rho_new = 1.0 / (2.0 * sigma - rho);
             let (c1, c2) = (rho_new * rho, 2.0 * rho_new / delta);
-            // d = c1 d + c2 D^-1 r, with D^-1 r computed into x's spare: reuse rhs-free scratch.
+            // d = c1 d + c2 D^-1 r, fused in one pass.
             for (node, inv) in self.inv_diag.iter().enumerate() {
                 let base = 3 * node * b;
                 for j in 0..b {
