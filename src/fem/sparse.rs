@@ -136,6 +136,13 @@ pub fn spmm(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64], la
     let need = (3 * pattern.nodes()).saturating_sub(1) * layout.stride + layout.width;
     assert!(layout.width <= layout.stride && x.len() >= need && y.len() >= need);
     #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU supports AVX-512F (checked just above; it implies AVX2 and FMA), the
+        // only requirement of a `target_feature` function; the lengths were asserted above.
+        unsafe { spmm_avx512(pattern, a, x, y, layout) };
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU supports AVX2 and FMA (checked just above), the only requirement of a
         // `target_feature` function; the kernel itself is safe code.
@@ -145,91 +152,182 @@ pub fn spmm(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64], la
     spmm_kernel(pattern, a, x, y, layout);
 }
 
-/// The AVX2/FMA kernel: 8 columns per pass (3 rows x 2 registers of accumulators), then 4,
-/// then the portable code for the last 1-3 columns.
+/// The AVX2/FMA kernel: every node row through [`row_avx2`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn spmm_avx2(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64], l: RowBlock) {
+    for r in 0..pattern.nodes() {
+        // SAFETY: the caller (`spmm`) checked the slice lengths and the CPU features.
+        unsafe { row_avx2(pattern, a, x, y, l, r, 0) };
+    }
+}
+
+/// The AVX-512 kernel: 16 columns per pass (3 rows x 2 registers of accumulators); the last
+/// pass of a row masks the columns past the width.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn spmm_avx512(
+    pattern: &BlockPattern,
+    a: &[[f64; 9]],
+    x: &[f64],
+    y: &mut [f64],
+    l: RowBlock,
+) {
     use std::arch::x86_64::*;
     let (b, ld) = (l.width, l.stride);
     let nodes = pattern.nodes();
     let xp = x.as_ptr();
+    let yp = y.as_mut_ptr();
     for r in 0..nodes {
         let span = pattern.row_ptr[r]..pattern.row_ptr[r + 1];
         let cols = &pattern.col[span.clone()];
         let vals = &a[span];
         let mut j0 = 0;
-        while j0 + 8 <= b {
-            let mut acc = [_mm256_setzero_pd(); 6];
+        while j0 < b {
+            let w = (b - j0).min(16);
+            let lo: __mmask8 = ((1u32 << w.min(8)) - 1) as u8;
+            let hi: __mmask8 = ((1u32 << w.saturating_sub(8)) - 1) as u8;
+            let mut acc = [_mm512_setzero_pd(); 6];
             for (&col, v) in cols.iter().zip(vals) {
                 assert!((col as usize) < nodes, "pattern column out of range");
                 // SAFETY: col < nodes, so the three rows 3 col + d start at most at
-                // (3 nodes - 1) ld, and j0 + 8 <= width; `spmm` asserted that
-                // x.len() >= (3 nodes - 1) ld + width, so every load is in bounds.
+                // (3 nodes - 1) ld; the masks load only columns j0..j0 + w <= width, and
+                // `spmm` asserted that x.len() >= (3 nodes - 1) ld + width: masked-off lanes
+                // are not accessed, so every access is in bounds.
                 let (x0, x1, x2, x3, x4, x5) = unsafe {
                     let p = xp.add(3 * col as usize * ld + j0);
                     (
-                        _mm256_loadu_pd(p),
-                        _mm256_loadu_pd(p.add(4)),
-                        _mm256_loadu_pd(p.add(ld)),
-                        _mm256_loadu_pd(p.add(ld + 4)),
-                        _mm256_loadu_pd(p.add(2 * ld)),
-                        _mm256_loadu_pd(p.add(2 * ld + 4)),
+                        _mm512_maskz_loadu_pd(lo, p),
+                        _mm512_maskz_loadu_pd(hi, p.add(8)),
+                        _mm512_maskz_loadu_pd(lo, p.add(ld)),
+                        _mm512_maskz_loadu_pd(hi, p.add(ld + 8)),
+                        _mm512_maskz_loadu_pd(lo, p.add(2 * ld)),
+                        _mm512_maskz_loadu_pd(hi, p.add(2 * ld + 8)),
                     )
                 };
                 for i in 0..3 {
                     let (a0, a1, a2) = (
-                        _mm256_set1_pd(v[3 * i]),
-                        _mm256_set1_pd(v[3 * i + 1]),
-                        _mm256_set1_pd(v[3 * i + 2]),
+                        _mm512_set1_pd(v[3 * i]),
+                        _mm512_set1_pd(v[3 * i + 1]),
+                        _mm512_set1_pd(v[3 * i + 2]),
                     );
-                    acc[2 * i] = _mm256_fmadd_pd(a0, x0, acc[2 * i]);
-                    acc[2 * i + 1] = _mm256_fmadd_pd(a0, x1, acc[2 * i + 1]);
-                    acc[2 * i] = _mm256_fmadd_pd(a1, x2, acc[2 * i]);
-                    acc[2 * i + 1] = _mm256_fmadd_pd(a1, x3, acc[2 * i + 1]);
-                    acc[2 * i] = _mm256_fmadd_pd(a2, x4, acc[2 * i]);
-                    acc[2 * i + 1] = _mm256_fmadd_pd(a2, x5, acc[2 * i + 1]);
+                    acc[2 * i] = _mm512_fmadd_pd(a0, x0, acc[2 * i]);
+                    acc[2 * i + 1] = _mm512_fmadd_pd(a0, x1, acc[2 * i + 1]);
+                    acc[2 * i] = _mm512_fmadd_pd(a1, x2, acc[2 * i]);
+                    acc[2 * i + 1] = _mm512_fmadd_pd(a1, x3, acc[2 * i + 1]);
+                    acc[2 * i] = _mm512_fmadd_pd(a2, x4, acc[2 * i]);
+                    acc[2 * i + 1] = _mm512_fmadd_pd(a2, x5, acc[2 * i + 1]);
                 }
             }
             for i in 0..3 {
-                let out = &mut y[(3 * r + i) * ld + j0..(3 * r + i) * ld + j0 + 8];
-                // SAFETY: `out` is a slice of exactly 8 values: both stores are in bounds.
+                // SAFETY: row 3 r + i < 3 nodes, so its columns j0..j0 + w lie within
+                // y.len() >= (3 nodes - 1) ld + width (asserted by `spmm`); the masks store
+                // only those columns.
                 unsafe {
-                    _mm256_storeu_pd(out.as_mut_ptr(), acc[2 * i]);
-                    _mm256_storeu_pd(out.as_mut_ptr().add(4), acc[2 * i + 1]);
+                    let out = yp.add((3 * r + i) * ld + j0);
+                    _mm512_mask_storeu_pd(out, lo, acc[2 * i]);
+                    _mm512_mask_storeu_pd(out.add(8), hi, acc[2 * i + 1]);
                 }
             }
-            j0 += 8;
+            j0 += w;
         }
-        while j0 + 4 <= b {
-            let mut acc = [_mm256_setzero_pd(); 3];
-            for (&col, v) in cols.iter().zip(vals) {
-                assert!((col as usize) < nodes, "pattern column out of range");
-                // SAFETY: as above, with j0 + 4 <= width.
-                let (x0, x1, x2) = unsafe {
-                    let p = xp.add(3 * col as usize * ld + j0);
-                    (
-                        _mm256_loadu_pd(p),
-                        _mm256_loadu_pd(p.add(ld)),
-                        _mm256_loadu_pd(p.add(2 * ld)),
-                    )
-                };
-                for (i, acc_i) in acc.iter_mut().enumerate() {
-                    *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i]), x0, *acc_i);
-                    *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i + 1]), x1, *acc_i);
-                    *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i + 2]), x2, *acc_i);
-                }
+    }
+}
+
+/// Node row `r` of `Y = A X` for the columns `j0..width`: 8 columns per pass (3 rows x 2
+/// registers of accumulators), then 4, then the portable code for the last 1-3 columns.
+///
+/// # Safety
+/// The CPU supports AVX2 and FMA, and the slices passed the length check of [`spmm`].
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn row_avx2(
+    pattern: &BlockPattern,
+    a: &[[f64; 9]],
+    x: &[f64],
+    y: &mut [f64],
+    l: RowBlock,
+    r: usize,
+    mut j0: usize,
+) {
+    use std::arch::x86_64::*;
+    let (b, ld) = (l.width, l.stride);
+    let nodes = pattern.nodes();
+    let xp = x.as_ptr();
+    let span = pattern.row_ptr[r]..pattern.row_ptr[r + 1];
+    let cols = &pattern.col[span.clone()];
+    let vals = &a[span];
+    while j0 + 8 <= b {
+        let mut acc = [_mm256_setzero_pd(); 6];
+        for (&col, v) in cols.iter().zip(vals) {
+            assert!((col as usize) < nodes, "pattern column out of range");
+            // SAFETY: col < nodes, so the three rows 3 col + d start at most at
+            // (3 nodes - 1) ld, and j0 + 8 <= width; `spmm` asserted that
+            // x.len() >= (3 nodes - 1) ld + width, so every load is in bounds.
+            let (x0, x1, x2, x3, x4, x5) = unsafe {
+                let p = xp.add(3 * col as usize * ld + j0);
+                (
+                    _mm256_loadu_pd(p),
+                    _mm256_loadu_pd(p.add(4)),
+                    _mm256_loadu_pd(p.add(ld)),
+                    _mm256_loadu_pd(p.add(ld + 4)),
+                    _mm256_loadu_pd(p.add(2 * ld)),
+                    _mm256_loadu_pd(p.add(2 * ld + 4)),
+                )
+            };
+            for i in 0..3 {
+                let (a0, a1, a2) = (
+                    _mm256_set1_pd(v[3 * i]),
+                    _mm256_set1_pd(v[3 * i + 1]),
+                    _mm256_set1_pd(v[3 * i + 2]),
+                );
+                acc[2 * i] = _mm256_fmadd_pd(a0, x0, acc[2 * i]);
+                acc[2 * i + 1] = _mm256_fmadd_pd(a0, x1, acc[2 * i + 1]);
+                acc[2 * i] = _mm256_fmadd_pd(a1, x2, acc[2 * i]);
+                acc[2 * i + 1] = _mm256_fmadd_pd(a1, x3, acc[2 * i + 1]);
+                acc[2 * i] = _mm256_fmadd_pd(a2, x4, acc[2 * i]);
+                acc[2 * i + 1] = _mm256_fmadd_pd(a2, x5, acc[2 * i + 1]);
             }
-            for (i, acc_i) in acc.iter().enumerate() {
-                let out = &mut y[(3 * r + i) * ld + j0..(3 * r + i) * ld + j0 + 4];
-                // SAFETY: `out` is a slice of exactly 4 values.
-                unsafe { _mm256_storeu_pd(out.as_mut_ptr(), *acc_i) };
+        }
+        for i in 0..3 {
+            let out = &mut y[(3 * r + i) * ld + j0..(3 * r + i) * ld + j0 + 8];
+            // SAFETY: `out` is a slice of exactly 8 values: both stores are in bounds.
+            unsafe {
+                _mm256_storeu_pd(out.as_mut_ptr(), acc[2 * i]);
+                _mm256_storeu_pd(out.as_mut_ptr().add(4), acc[2 * i + 1]);
             }
-            j0 += 4;
         }
-        if j0 < b {
-            spmm_row(cols, vals, x, y, r, j0..b, ld);
+        j0 += 8;
+    }
+    while j0 + 4 <= b {
+        let mut acc = [_mm256_setzero_pd(); 3];
+        for (&col, v) in cols.iter().zip(vals) {
+            assert!((col as usize) < nodes, "pattern column out of range");
+            // SAFETY: as above, with j0 + 4 <= width.
+            let (x0, x1, x2) = unsafe {
+                let p = xp.add(3 * col as usize * ld + j0);
+                (
+                    _mm256_loadu_pd(p),
+                    _mm256_loadu_pd(p.add(ld)),
+                    _mm256_loadu_pd(p.add(2 * ld)),
+                )
+            };
+            for (i, acc_i) in acc.iter_mut().enumerate() {
+                *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i]), x0, *acc_i);
+                *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i + 1]), x1, *acc_i);
+                *acc_i = _mm256_fmadd_pd(_mm256_set1_pd(v[3 * i + 2]), x2, *acc_i);
+            }
         }
+        for (i, acc_i) in acc.iter().enumerate() {
+            let out = &mut y[(3 * r + i) * ld + j0..(3 * r + i) * ld + j0 + 4];
+            // SAFETY: `out` is a slice of exactly 4 values.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), *acc_i) };
+        }
+        j0 += 4;
+    }
+    if j0 < b {
+        spmm_row(cols, vals, x, y, r, j0..b, ld);
     }
 }
 
@@ -352,14 +450,23 @@ mod tests {
     use crate::fem::{ElementKind, FemModel};
     use crate::shape::VoxelGrid;
 
-    /// The block product equals one `spmv` per column, for dense and strided layouts and widths
-    /// that do and do not fill the 8-column chunks.
+    /// The block product (the kernel this CPU picks, and the portable one) equals one `spmv` per
+    /// column, for dense and strided layouts and widths that do and do not fill the 16-, 8- and
+    /// 4-column passes.
     #[test]
     fn spmm_matches_spmv_per_column() {
         let grid = VoxelGrid::from_fn([5, 3, 2], 1.0, |x, y, _| x + y < 6.0).unwrap();
         let model = FemModel::assemble(&grid, ElementKind::Hex8, 0.3).unwrap();
         let n = model.dofs();
-        for (width, stride) in [(1, 1), (8, 8), (11, 11), (5, 13), (16, 20)] {
+        for (width, stride) in [
+            (1, 1),
+            (8, 8),
+            (11, 11),
+            (5, 13),
+            (16, 20),
+            (29, 29),
+            (32, 40),
+        ] {
             let x: Vec<f64> = (0..n * stride)
                 .map(|i| ((i * 31 % 17) as f64) - 8.0)
                 .collect();
@@ -371,13 +478,23 @@ mod tests {
                 &mut y,
                 RowBlock { width, stride },
             );
+            // The portable kernel, whatever the CPU picked above.
+            let mut y_portable = vec![0.0; n * stride];
+            spmm_kernel(
+                &model.pattern,
+                &model.k,
+                &x,
+                &mut y_portable,
+                RowBlock { width, stride },
+            );
             for j in 0..width {
                 let col: Vec<f64> = (0..n).map(|i| x[i * stride + j]).collect();
                 let mut want = vec![0.0; n];
                 spmv(&model.pattern, &model.k, &col, &mut want);
                 for i in 0..n {
-                    let got = y[i * stride + j];
-                    assert!((got - want[i]).abs() <= 1e-12 * want[i].abs().max(1.0));
+                    for got in [y[i * stride + j], y_portable[i * stride + j]] {
+                        assert!((got - want[i]).abs() <= 1e-12 * want[i].abs().max(1.0));
+                    }
                 }
             }
         }
