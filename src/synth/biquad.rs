@@ -170,7 +170,7 @@ impl BiquadBank {
         sections: &[BiquadCoeffs],
         backend: SimdBackend,
     ) -> Result<Self, BiquadError> {
-        if stages == 0 || sections.is_empty() || sections.len() % stages != 0 {
+        if stages == 0 || sections.is_empty() || !sections.len().is_multiple_of(stages) {
             return Err(BiquadError::Shape {
                 sections: sections.len(),
                 stages,
