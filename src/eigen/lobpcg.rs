@@ -53,13 +53,25 @@ fn guard(need: usize) -> usize {
     (need / 4).max(4)
 }
 
-/// A block of vectors with their `K` and `M` images, row-major with a fixed row stride.
+/// A block of vectors with their `K` and `M` images, row-major with a fixed row stride `cap`.
+/// The block is the columns `first..first + width`; columns before `first` are locked (kept,
+/// but no longer part of the search).
 struct Images {
     x: Vec<f64>,
     kx: Vec<f64>,
     mx: Vec<f64>,
+    rows: usize,
+    first: usize,
     width: usize,
     cap: usize,
+}
+
+/// Which of an [`Images`]' three buffers.
+#[derive(Clone, Copy)]
+enum Part {
+    X,
+    Kx,
+    Mx,
 }
 
 impl Images {
@@ -68,6 +80,8 @@ impl Images {
             x: vec![0.0; n * cap],
             kx: vec![0.0; n * cap],
             mx: vec![0.0; n * cap],
+            rows: n,
+            first: 0,
             width: 0,
             cap,
         }
@@ -80,26 +94,57 @@ impl Images {
         }
     }
 
+    fn buf(&self, part: Part) -> &[f64] {
+        match part {
+            Part::X => &self.x[self.first..],
+            Part::Kx => &self.kx[self.first..],
+            Part::Mx => &self.mx[self.first..],
+        }
+    }
+
+    /// The block's columns of one buffer.
+    fn view(&self, part: Part) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice_with_stride(self.buf(part), self.rows, self.width, self.cap)
+    }
+
+    /// The block's columns of one buffer, writable.
+    fn view_mut(&mut self, part: Part) -> MatMut<'_, f64> {
+        let (rows, width, cap, first) = (self.rows, self.width, self.cap, self.first);
+        let buf = match part {
+            Part::X => &mut self.x[first..],
+            Part::Kx => &mut self.kx[first..],
+            Part::Mx => &mut self.mx[first..],
+        };
+        // Not `from_row_major_slice_with_stride_mut`: in faer 0.24 it builds a column-major view
+        // (row stride 1, column stride `row_stride`). The transposed column-major view is right.
+        MatMut::from_column_major_slice_with_stride_mut(buf, width, rows, cap).transpose_mut()
+    }
+
+    /// Recomputes `K X` and `M X` for the block's columns.
     fn refresh(&mut self, ops: &Operators) {
         let l = self.layout();
         if l.width == 0 {
             return;
         }
-        sparse::spmm(ops.pattern, ops.k, &self.x, &mut self.kx, l);
-        sparse::spmm(ops.pattern, ops.m, &self.x, &mut self.mx, l);
+        let f = self.first;
+        sparse::spmm(ops.pattern, ops.k, &self.x[f..], &mut self.kx[f..], l);
+        sparse::spmm(ops.pattern, ops.m, &self.x[f..], &mut self.mx[f..], l);
     }
-}
 
-fn view(buf: &[f64], l: RowBlock) -> MatRef<'_, f64> {
-    let n = buf.len() / l.stride;
-    MatRef::from_row_major_slice_with_stride(buf, n, l.width, l.stride)
-}
-
-fn view_mut(buf: &mut [f64], l: RowBlock) -> MatMut<'_, f64> {
-    let n = buf.len() / l.stride;
-    // Not `from_row_major_slice_with_stride_mut`: in faer 0.24 it builds a column-major view
-    // (row stride 1, column stride `row_stride`). The transposed column-major view is right.
-    MatMut::from_column_major_slice_with_stride_mut(buf, l.width, n, l.stride).transpose_mut()
+    /// Copies columns `cols` of all three buffers from `src` (same shape).
+    fn copy_columns(&mut self, src: &Images, cols: std::ops::Range<usize>) {
+        for (dst, from) in [
+            (&mut self.x, &src.x),
+            (&mut self.kx, &src.kx),
+            (&mut self.mx, &src.mx),
+        ] {
+            for i in 0..self.rows {
+                let r = i * self.cap;
+                dst[r + cols.start..r + cols.end]
+                    .copy_from_slice(&from[r + cols.start..r + cols.end]);
+            }
+        }
+    }
 }
 
 /// Rayleigh-Ritz on the span of `blocks`: the lowest `want` Ritz values and the coefficient
@@ -114,9 +159,9 @@ fn rayleigh_ritz(blocks: &[&Images], want: usize) -> Result<(Vec<f64>, Mat<f64>)
         let mut c0 = r0;
         for bj in &blocks[i..] {
             let (ri, cj) = (r0..r0 + bi.width, c0..c0 + bj.width);
-            let xi = view(&bi.x, bi.layout());
-            let k = xi.transpose() * view(&bj.kx, bj.layout());
-            let m = xi.transpose() * view(&bj.mx, bj.layout());
+            let xi = bi.view(Part::X);
+            let k = xi.transpose() * bj.view(Part::Kx);
+            let m = xi.transpose() * bj.view(Part::Mx);
             gk.as_mut().get_mut(ri.clone(), cj.clone()).copy_from(&k);
             gm.as_mut().get_mut(ri.clone(), cj.clone()).copy_from(&m);
             gk.as_mut()
@@ -154,34 +199,23 @@ fn rayleigh_ritz(blocks: &[&Images], want: usize) -> Result<(Vec<f64>, Mat<f64>)
     Ok((theta[..want].to_vec(), c))
 }
 
-/// `dst = sum_i blocks[i] C[rows_i, cols]` for the vectors and both images.
+/// `dst = sum_i blocks[i] C[rows_i, cols]` (the vectors only; their images are recomputed with
+/// two sparse products, cheaper and more accurate than combining them too), into the columns
+/// `dst.first..dst.first + C.ncols()`.
 fn combine(dst: &mut Images, blocks: &[&Images], c: MatRef<'_, f64>) {
     dst.width = c.ncols();
-    let l = dst.layout();
-    for which in 0..3 {
-        let out = match which {
-            0 => &mut dst.x,
-            1 => &mut dst.kx,
-            _ => &mut dst.mx,
-        };
-        let mut r0 = 0;
-        for (i, b) in blocks.iter().enumerate() {
-            let src = match which {
-                0 => &b.x,
-                1 => &b.kx,
-                _ => &b.mx,
-            };
-            let accum = if i == 0 { Accum::Replace } else { Accum::Add };
-            matmul(
-                view_mut(out, l),
-                accum,
-                view(src, b.layout()),
-                c.get(r0..r0 + b.width, ..),
-                1.0,
-                Par::Seq,
-            );
-            r0 += b.width;
-        }
+    let mut r0 = 0;
+    for (i, b) in blocks.iter().enumerate() {
+        let accum = if i == 0 { Accum::Replace } else { Accum::Add };
+        matmul(
+            dst.view_mut(Part::X),
+            accum,
+            b.view(Part::X),
+            c.get(r0..r0 + b.width, ..),
+            1.0,
+            Par::Seq,
+        );
+        r0 += b.width;
     }
 }
 
@@ -192,17 +226,23 @@ struct Converged {
     residuals: Vec<f64>,
 }
 
-/// Per-column residuals of seed 001 eq. 6.
+/// Per-column residuals of seed 001 eq. 6 for the block's columns (`theta` holds their Ritz
+/// values).
 fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
-    let m = xb.width;
+    let (m, f) = (xb.width, xb.first);
     let mut r2 = vec![0.0; m];
     let mut x2 = vec![0.0; m];
     for i in 0..ops.dofs() {
-        let row = i * xb.cap;
+        let row = i * xb.cap + f;
+        let (x, kx, mx) = (
+            &xb.x[row..row + m],
+            &xb.kx[row..row + m],
+            &xb.mx[row..row + m],
+        );
         for j in 0..m {
-            let r = xb.kx[row + j] - theta[j] * xb.mx[row + j];
+            let r = kx[j] - theta[j] * mx[j];
             r2[j] += r * r;
-            x2[j] += xb.x[row + j] * xb.x[row + j];
+            x2[j] += x[j] * x[j];
         }
     }
     (0..m)
@@ -211,6 +251,11 @@ fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
 }
 
 /// Iterates from the block `start` (dense, `n x m`) until its first `need` columns converge.
+///
+/// Locking: once the lowest columns have converged, that prefix leaves the search (hard
+/// locking): it is no longer part of Rayleigh-Ritz or the block updates, and new directions are
+/// kept `M`-orthogonal to it. Converged columns above an unconverged one only stop contributing
+/// residual directions (soft locking), so the locked set is always the lowest Ritz pairs.
 fn iterate(
     ops: &Operators,
     mg: &mut Multigrid,
@@ -228,18 +273,24 @@ fn iterate(
     let (mut theta, c) = rayleigh_ritz(&[&xb], m)?;
     let mut xt = Images::new(n, m);
     combine(&mut xt, &[&xb], c.as_ref());
+    xt.refresh(ops);
     std::mem::swap(&mut xb, &mut xt);
     let mut pb = Images::new(n, m);
     let mut pt = Images::new(n, m);
     let mut wb = Images::new(n, m);
     let mut rbuf = vec![0.0; n * m];
+    let mut res = vec![0.0; m];
+    let mut locked = 0;
     let (mut best, mut best_at) = (f64::INFINITY, *iterations);
     loop {
-        let res = residuals(ops, &xb, &theta);
+        let fresh = residuals(ops, &xb, &theta[locked..]);
+        res[locked..].copy_from_slice(&fresh);
         if res.iter().chain(&theta).any(|v| !v.is_finite()) {
             return Err(EigenError::NonFinite);
         }
         if res[..need].iter().all(|&r| r <= options.tolerance) {
+            xb.first = 0;
+            xb.width = m;
             return Ok(Converged {
                 theta,
                 x: xb,
@@ -259,7 +310,39 @@ fn iterate(
             });
         }
         *iterations += 1;
-        let active: Vec<usize> = (0..m).filter(|&j| res[j] > options.tolerance).collect();
+        // Lock the converged prefix; the spare buffer keeps a copy of the locked columns.
+        let was = locked;
+        while locked < need && res[locked] <= options.tolerance {
+            locked += 1;
+        }
+        if locked > was {
+            xt.copy_columns(&xb, was..locked);
+            // P was built while the newly locked columns were still searched: remove their
+            // M-components (and from P's images), or the active columns keep picking them up
+            // and stall near the tolerance.
+            if pb.width > 0 {
+                let (first, width) = (xb.first, xb.width);
+                (xb.first, xb.width) = (was, locked - was);
+                let coef = xb.view(Part::Mx).transpose() * pb.view(Part::X);
+                for part in [Part::X, Part::Kx, Part::Mx] {
+                    matmul(
+                        pb.view_mut(part),
+                        Accum::Add,
+                        xb.view(part),
+                        &coef,
+                        -1.0,
+                        Par::Seq,
+                    );
+                }
+                (xb.first, xb.width) = (first, width);
+            }
+            xb.first = locked;
+            xb.width = m - locked;
+            xt.first = locked;
+        }
+        let active: Vec<usize> = (locked..m)
+            .filter(|&j| res[j] > options.tolerance)
+            .collect();
         let a = active.len();
         // Residuals of the active columns, then W = T R.
         for i in 0..n {
@@ -270,30 +353,54 @@ fn iterate(
         }
         wb.width = a;
         let wl = wb.layout();
+
         mg.apply(&rbuf[..n * a], RowBlock::dense(a), &mut wb.x, wl);
-        // W -= X (M X)^T W: keeps the Gram matrices well conditioned.
-        let coef = view(&xb.mx, xb.layout()).transpose() * view(&wb.x, wl);
-        matmul(
-            view_mut(&mut wb.x, wl),
-            Accum::Add,
-            view(&xb.x, xb.layout()),
-            &coef,
-            -1.0,
-            Par::Seq,
-        );
+        // W -= X (M X)^T W over all columns, locked ones included: keeps W M-orthogonal to the
+        // locked modes and the Gram matrices well conditioned.
+        {
+            let (first, width) = (xb.first, xb.width);
+            (xb.first, xb.width) = (0, m);
+            let coef = xb.view(Part::Mx).transpose() * wb.view(Part::X);
+            matmul(
+                wb.view_mut(Part::X),
+                Accum::Add,
+                xb.view(Part::X),
+                &coef,
+                -1.0,
+                Par::Seq,
+            );
+            (xb.first, xb.width) = (first, width);
+        }
         wb.refresh(ops);
         let blocks: Vec<&Images> = [&xb, &wb, &pb]
             .into_iter()
             .filter(|b| b.width > 0)
             .collect();
-        let (theta_new, c) = rayleigh_ritz(&blocks, m)?;
-        combine(&mut xt, &blocks, c.as_ref());
-        // P: the W and P part of the update, for the active columns.
-        let c_p = Mat::from_fn(c.nrows() - m, a, |i, q| c[(m + i, active[q])]);
-        combine(&mut pt, &blocks[1..], c_p.as_ref());
+        let (theta_new, c) = rayleigh_ritz(&blocks, m - locked)?;
+        // The update without its X part, for every column: P_all = [W P] C[k.., :]. Then
+        // X' = X C[..k, :] + P_all, and P' = P_all's active columns (Knyazev's form, which
+        // spares a product with the whole basis).
+        let (k, cols) = (xb.width, m - locked);
+        pt.first = 0;
+        combine(&mut pt, &blocks[1..], c.get(k.., ..));
+        combine(&mut xt, &blocks[..1], c.get(..k, ..));
+        for i in 0..n {
+            let (row_x, row_p) = (i * m + locked, i * m);
+            for j in 0..cols {
+                xt.x[row_x + j] += pt.x[row_p + j];
+            }
+            if a < cols {
+                for (q, &j) in active.iter().enumerate() {
+                    pt.x[row_p + q] = pt.x[row_p + j - locked];
+                }
+            }
+        }
+        pt.width = a;
+        xt.refresh(ops);
+        pt.refresh(ops);
         std::mem::swap(&mut xb, &mut xt);
         std::mem::swap(&mut pb, &mut pt);
-        theta = theta_new;
+        theta[locked..].copy_from_slice(&theta_new);
     }
 }
 
@@ -448,7 +555,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
                 setup_ms,
                 iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
             };
-            let x = view(&done.x.x, done.x.layout());
+            let x = done.x.view(Part::X);
             return Ok(solution(&pairs, &sel, x, timings, iterations));
         }
         let rigid = sel.rigid;

@@ -25,7 +25,7 @@
 use super::factor::ShiftedCholesky;
 use super::{EigenError, Operators};
 use crate::fem::ordering::nested_dissection_of;
-use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock};
+use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
 use faer::{MatMut, Par};
 use std::collections::HashMap;
@@ -42,6 +42,12 @@ pub const SMOOTHING_RANGE: f64 = 20.0;
 
 /// Power iterations for the largest eigenvalue of `D^-1 A` (then padded by 10 %).
 const POWER_STEPS: usize = 12;
+
+/// The V-cycle's working precision below the coarsest level. Single precision halves the memory
+/// traffic of the smoother and the transfers and doubles the SIMD width; a preconditioner only
+/// has to approximate `A^-1` (LOBPCG's own products and Rayleigh-Ritz stay in f64). Levels are
+/// built in f64 and rounded once.
+type Real = f32;
 
 /// Cells of one level, each with an element matrix (hex8 nodes, 24x24) from a shared table.
 struct CellMesh {
@@ -62,18 +68,21 @@ struct Prolongation {
 /// One level: `A = K + tau M` and what smoothing needs.
 struct Level {
     pattern: BlockPattern,
+    /// `A` in f64 while the hierarchy is built; emptied by [`Level::prepare`].
     a: Blocks,
-    inv_diag: Vec<[f64; 9]>,
+    /// `A` in the V-cycle's precision.
+    a_real: Vec<[Real; 9]>,
+    inv_diag: Vec<[Real; 9]>,
     lambda_max: f64,
     lattice: [usize; 3],
     lattice_node: Vec<u32>,
     coords: Vec<[i64; 3]>,
     /// From the next coarser level to this one (`None` on the coarsest).
     prolong: Option<Prolongation>,
-    rhs: Vec<f64>,
-    x: Vec<f64>,
-    r: Vec<f64>,
-    d: Vec<f64>,
+    rhs: Vec<Real>,
+    x: Vec<Real>,
+    r: Vec<Real>,
+    d: Vec<Real>,
 }
 
 /// The coarsest level's matrices, for the nested start of LOBPCG.
@@ -91,6 +100,8 @@ pub struct Multigrid {
     levels: Vec<Level>,
     coarse: CoarseProblem,
     factor: ShiftedCholesky,
+    /// The coarsest level's block in f64, for the factor's solve.
+    coarse_x: Vec<f64>,
     tau: f64,
     max_width: usize,
 }
@@ -185,10 +196,12 @@ impl Multigrid {
             }
             level.prepare(max_width);
         }
+        let coarse_x = vec![0.0; 3 * coarse.pattern.nodes() * max_width.max(1)];
         Ok(Multigrid {
             levels,
             coarse,
             factor,
+            coarse_x,
             tau,
             max_width,
         })
@@ -249,13 +262,17 @@ impl Multigrid {
             let fine = &mut self.levels[0];
             for i in 0..n {
                 let at = i * r_layout.stride + c0;
-                fine.rhs[i * b..(i + 1) * b].copy_from_slice(&r[at..at + b]);
+                for (d, &v) in fine.rhs[i * b..(i + 1) * b].iter_mut().zip(&r[at..at + b]) {
+                    *d = v as Real;
+                }
             }
             self.vcycle(0, b);
             let fine = &self.levels[0];
             for i in 0..n {
                 let at = i * z_layout.stride + c0;
-                z[at..at + b].copy_from_slice(&fine.x[i * b..(i + 1) * b]);
+                for (d, &v) in z[at..at + b].iter_mut().zip(&fine.x[i * b..(i + 1) * b]) {
+                    *d = v as f64;
+                }
             }
             c0 += b;
         }
@@ -266,9 +283,15 @@ impl Multigrid {
         if l == last {
             let level = &mut self.levels[l];
             let n = 3 * level.coords.len();
-            level.x[..n * b].copy_from_slice(&level.rhs[..n * b]);
-            let view = MatMut::from_row_major_slice_mut(&mut level.x[..n * b], n, b);
-            self.factor.solve_in_place(view);
+            let x = &mut self.coarse_x[..n * b];
+            for (d, &v) in x.iter_mut().zip(&level.rhs[..n * b]) {
+                *d = v as f64;
+            }
+            self.factor
+                .solve_in_place(MatMut::from_row_major_slice_mut(x, n, b));
+            for (d, &v) in level.x[..n * b].iter_mut().zip(x.iter()) {
+                *d = v as Real;
+            }
             return;
         }
         let (head, tail) = self.levels.split_at_mut(l + 1);
@@ -309,6 +332,7 @@ impl Level {
         Level {
             pattern,
             a,
+            a_real: Vec::new(),
             inv_diag: Vec::new(),
             lambda_max: 0.0,
             lattice,
@@ -328,36 +352,38 @@ impl Level {
         self.inv_diag = (0..nodes)
             .map(|r| {
                 let b = self.pattern.find(r, r as u32).expect("diagonal block");
-                invert3(&self.a[b])
+                invert3(&self.a[b]).map(|v| v as Real)
             })
             .collect();
+        self.a_real = self.a.iter().map(|b| b.map(|v| v as Real)).collect();
+        self.a = Vec::new();
         let n = 3 * nodes;
         let size = n * max_width;
         self.rhs = vec![0.0; size];
         self.x = vec![0.0; size];
         self.r = vec![0.0; size];
         self.d = vec![0.0; size];
-        // Power iteration on D^-1 A with a fixed pseudo-random start.
-        let mut v: Vec<f64> = (0..n)
-            .map(|i| ((i * 7919 % 1013) as f64 / 1013.0) - 0.45)
+        // Power iteration on D^-1 A (as the V-cycle applies it) with a fixed pseudo-random start.
+        let mut v: Vec<Real> = (0..n)
+            .map(|i| ((i * 7919 % 1013) as Real / 1013.0) - 0.45)
             .collect();
         let mut av = vec![0.0; n];
         let mut lambda = 0.0;
         for _ in 0..POWER_STEPS {
-            let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let norm = v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
             if norm == 0.0 || !norm.is_finite() {
                 break;
             }
-            v.iter_mut().for_each(|x| *x /= norm);
-            sparse::spmm(&self.pattern, &self.a, &v, &mut av, RowBlock::dense(1));
+            v.iter_mut().for_each(|x| *x = (*x as f64 / norm) as Real);
+            sparse::spmm(&self.pattern, &self.a_real, &v, &mut av, RowBlock::dense(1));
             self.apply_inv_diag(&av, &mut v, 1);
-            lambda = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            lambda = v.iter().map(|&x| x as f64 * x as f64).sum::<f64>().sqrt();
         }
         self.lambda_max = 1.1 * lambda;
     }
 
     /// `out = D^-1 v` for a dense block of width `b`.
-    fn apply_inv_diag(&self, v: &[f64], out: &mut [f64], b: usize) {
+    fn apply_inv_diag(&self, v: &[Real], out: &mut [Real], b: usize) {
         for (node, inv) in self.inv_diag.iter().enumerate() {
             let base = 3 * node * b;
             for j in 0..b {
@@ -374,7 +400,7 @@ impl Level {
         let n = 3 * self.coords.len() * b;
         sparse::spmm(
             &self.pattern,
-            &self.a,
+            &self.a_real,
             &self.x[..n],
             &mut self.r[..n],
             RowBlock::dense(b),
@@ -393,6 +419,7 @@ impl Level {
         let (theta, delta) = (0.5 * (hi + lo), 0.5 * (hi - lo));
         let sigma = theta / delta;
         let mut rho = 1.0 / sigma;
+        let inv_theta = (1.0 / theta) as Real;
         if zero_start {
             self.x[..n].fill(0.0);
             self.r[..n].copy_from_slice(&self.rhs[..n]);
@@ -401,14 +428,14 @@ impl Level {
         }
         let mut d = std::mem::take(&mut self.d);
         self.apply_inv_diag(&self.r[..n], &mut d[..n], b);
-        d[..n].iter_mut().for_each(|v| *v /= theta);
+        d[..n].iter_mut().for_each(|v| *v *= inv_theta);
         for _ in 1..SMOOTHING_DEGREE {
             for (x, dv) in self.x[..n].iter_mut().zip(&d[..n]) {
                 *x += dv;
             }
             self.residual(b);
             let rho_new = 1.0 / (2.0 * sigma - rho);
-            let (c1, c2) = (rho_new * rho, 2.0 * rho_new / delta);
+            let (c1, c2) = ((rho_new * rho) as Real, (2.0 * rho_new / delta) as Real);
             // d = c1 d + c2 D^-1 r, fused in one pass.
             for (node, inv) in self.inv_diag.iter().enumerate() {
                 let base = 3 * node * b;
@@ -660,13 +687,13 @@ fn prolongation(fine_coords: &[[i64; 3]], coarse: &Level) -> Prolongation {
 }
 
 /// `fine += P coarse` for dense blocks of width `b`.
-fn prolong_add(p: &Prolongation, coarse: &[f64], fine: &mut [f64], b: usize) {
+fn prolong_add<T: Scalar>(p: &Prolongation, coarse: &[T], fine: &mut [T], b: usize) {
     for node in 0..p.row_ptr.len() - 1 {
         let out = &mut fine[3 * node * b..3 * (node + 1) * b];
         for k in p.row_ptr[node]..p.row_ptr[node + 1] {
-            let w = p.weight[k];
+            let w = T::from_f64(p.weight[k]);
             let src = &coarse[3 * p.coarse[k] as usize * b..3 * (p.coarse[k] as usize + 1) * b];
-            for (o, s) in out.iter_mut().zip(src) {
+            for (o, &s) in out.iter_mut().zip(src) {
                 *o += w * s;
             }
         }
@@ -674,13 +701,13 @@ fn prolong_add(p: &Prolongation, coarse: &[f64], fine: &mut [f64], b: usize) {
 }
 
 /// `coarse += P^T fine` for dense blocks of width `b`.
-fn restrict_add(p: &Prolongation, fine: &[f64], coarse: &mut [f64], b: usize) {
+fn restrict_add<T: Scalar>(p: &Prolongation, fine: &[T], coarse: &mut [T], b: usize) {
     for node in 0..p.row_ptr.len() - 1 {
         let src = &fine[3 * node * b..3 * (node + 1) * b];
         for k in p.row_ptr[node]..p.row_ptr[node + 1] {
-            let w = p.weight[k];
+            let w = T::from_f64(p.weight[k]);
             let c = p.coarse[k] as usize;
-            for (o, s) in coarse[3 * c * b..3 * (c + 1) * b].iter_mut().zip(src) {
+            for (o, &s) in coarse[3 * c * b..3 * (c + 1) * b].iter_mut().zip(src) {
                 *o += w * s;
             }
         }
