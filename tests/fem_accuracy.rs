@@ -94,14 +94,31 @@ fn plate_32x32x2_lowest_20_within_2_percent_default_and_0_2_percent_quadratic() 
 /// NOT the issue's bound: it asks for 2 %, hex27 on the 32^3 voxels measures 1.2-2.8 % above
 /// the split-2 reference (worst 2.77 %, first mode). The plate shows the element itself is
 /// accurate (0.08 % with 2 elements across); the bowl's excess comes from the staircase's
-/// re-entrant corners, whose stress singularities converge slowly under refinement. The test
-/// holds the measured state (3 %) so that any regression fails; meeting 2 % is open work.
+/// re-entrant corners, whose stress singularities converge slowly under refinement. The stored
+/// split-3 solution (`bowl_split3`, 2.1M DOFs) measures it: hex27 on split 1, 2, 3 is 2.77 %, 0,
+/// -0.72 % from split 2 on the first mode, a rate of about h^1.45, so the split-2 reference is
+/// itself ~1.6 % above the limit and no second-order element on the 1x voxels gets within 2 %
+/// of it. The test holds the measured state (3 %) so that a regression fails, and checks the
+/// sequence is monotone (a conforming element's frequencies are upper bounds that fall with
+/// every refinement).
 #[test]
 fn bowl_32_wall_2_lowest_10_quadratic_within_3_percent() {
     let reference = reference_hz("bowl");
     let (hex27, t27) = solve("--shape bowl:d=32,wall=2 --modes 10 --element hex27 --solver lobpcg");
     let e27 = worst_percent(&hex27, &reference, 10);
     assert!(e27 < 3.0, "bowl hex27: {e27:.3} %");
+    let split3 = reference_hz("bowl_split3");
+    for i in 0..10 {
+        assert!(
+            hex27[i] > reference[i] && reference[i] > split3[i],
+            "mode {i}: refinement must lower it: {} > {} > {}",
+            hex27[i],
+            reference[i],
+            split3[i]
+        );
+        // Each refinement closes less than it did before (convergence, not drift).
+        assert!(reference[i] - split3[i] < hex27[i] - reference[i]);
+    }
     // The default element on the same voxels, reported beside it (not a bound: measured
     // 6.6-15 %, the issue measured 10-12 % for incompatible modes on this staircased shell).
     let (hex8i, t8) = solve("--shape bowl:d=32,wall=2 --modes 10 --solver lobpcg");
