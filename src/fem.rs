@@ -91,8 +91,8 @@ impl FemModel {
         }
         let nodes = node_lattice.len();
         let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
-        let mut k = vec![[0.0; 9]; pattern.col.len()];
-        let mut m = vec![[0.0; 9]; pattern.col.len()];
+        let mut k = crate::buffer::zeroed(pattern.col.len());
+        let mut m = crate::buffer::zeroed(pattern.col.len());
         let unit_matrices = (&unit.stiffness[..], &unit.mass[..]);
         sparse::add_elements(&pattern, &elements, nloc, |_| unit_matrices, &mut k, &mut m);
         Ok(FemModel {

@@ -5,6 +5,7 @@
 //! the banks in [`synth`] play it, struck by an [`synth::Excitation`] or driven by a force signal.
 #![deny(missing_docs)]
 
+pub mod buffer;
 pub mod cli;
 pub mod demo;
 pub mod eigen;

@@ -9,9 +9,11 @@
 //!
 //! Error: the mean and the largest relative difference of the lowest [`CHART_MODES`]
 //! frequencies from the shape's reference, which is the same shape solved with quadratic
-//! elements (hex27) at the sweep's reference resolution by Lanczos at residual 1e-9. Points at
-//! the reference resolution measure discretisation error only; coarser points also carry the
-//! staircase's geometric error, which is what a user choosing a resolution pays.
+//! elements (hex27) at the sweep's finest resolution (plate and bowl 64, sphere 32; 0.4-0.7M
+//! DOFs) by LOBPCG at residual 1e-7 (`--quick`: resolution 10, Lanczos at 1e-9). Points at the
+//! reference resolution measure discretisation error only; coarser points also carry the
+//! staircase's geometric error, which is what a user choosing a resolution pays. Plate and bowl
+//! resolutions keep their wall a whole number of voxels, so each is the same physical object.
 
 use super::CliError;
 use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
@@ -125,14 +127,26 @@ pub fn sweep(
     quick: bool,
     mut progress: impl FnMut(&ChartPoint),
 ) -> Result<Vec<ChartPoint>, CliError> {
-    let (shapes, resolutions): (&[(&str, usize)], &[usize]) = if quick {
-        (&[("plate", 10), ("bowl", 10)], &[6, 8])
-    } else {
-        (
-            &[("plate", 48), ("bowl", 32), ("sphere", 20)],
-            &[8, 12, 16, 24, 32, 48],
-        )
-    };
+    // (shape, resolutions, reference resolution). Plate and bowl resolutions keep the wall a
+    // whole number of voxels (1/16 of the size), so every point is the same physical object.
+    let (shapes, reference_solver, reference_tolerance): (&[(&str, &[usize], usize)], _, _) =
+        if quick {
+            (
+                &[("plate", &[6, 8], 10), ("bowl", &[6, 8], 10)],
+                SolverKind::Lanczos,
+                1e-9,
+            )
+        } else {
+            (
+                &[
+                    ("plate", &[16, 32, 48, 64], 64),
+                    ("bowl", &[16, 32, 48, 64], 64),
+                    ("sphere", &[8, 12, 16, 24, 32], 32),
+                ],
+                SolverKind::Lobpcg,
+                1e-7,
+            )
+        };
     let runs: &[(ElementKind, SolverKind, f64)] = &[
         (ElementKind::Hex8, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex8Incompatible, SolverKind::Lanczos, 1e-6),
@@ -142,13 +156,13 @@ pub fn sweep(
         (ElementKind::Hex27, SolverKind::Lobpcg, 1e-6),
     ];
     let mut points = Vec::new();
-    for &(name, n_ref) in shapes {
+    for &(name, resolutions, n_ref) in shapes {
         let (reference, ..) = solve(
             name,
             n_ref,
             ElementKind::Hex27,
-            SolverKind::Lanczos,
-            1e-9,
+            reference_solver,
+            reference_tolerance,
             usize::MAX,
         )?
         .ok_or_else(|| {

@@ -27,6 +27,7 @@ use super::{
     lanczos, random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution,
     ModeCount, Operators, SolveTimings,
 };
+use crate::buffer::zeroed;
 use crate::fem::sparse::{self, RowBlock};
 use crate::fem::FemModel;
 use faer::linalg::matmul::matmul;
@@ -77,9 +78,9 @@ enum Part {
 impl Images {
     fn new(n: usize, cap: usize) -> Self {
         Images {
-            x: vec![0.0; n * cap],
-            kx: vec![0.0; n * cap],
-            mx: vec![0.0; n * cap],
+            x: zeroed(n * cap),
+            kx: zeroed(n * cap),
+            mx: zeroed(n * cap),
             rows: n,
             first: 0,
             width: 0,
@@ -278,7 +279,7 @@ fn iterate(
     let mut pb = Images::new(n, m);
     let mut pt = Images::new(n, m);
     let mut wb = Images::new(n, m);
-    let mut rbuf = vec![0.0; n * m];
+    let mut rbuf = zeroed(n * m);
     let mut res = vec![0.0; m];
     let mut locked = 0;
     let (mut best, mut best_at) = (f64::INFINITY, *iterations);
@@ -498,7 +499,7 @@ fn nested_start(
     };
     let need = rigid + below.max(1);
     let m = need + guard(need);
-    let mut block = vec![0.0; n * m];
+    let mut block = zeroed(n * m);
     let rig = rigid_fields(model);
     let mut col = 0;
     let mut put = |src: &[f64], w: usize, take: usize, col: &mut usize| {
@@ -508,8 +509,14 @@ fn nested_start(
         *col += take;
     };
     put(&rig, 6, 6.min(m), &mut col);
+    // The last guard columns start random: a fine mode the coarse level represents badly (a
+    // thin shell's bending, stiffened by the coarse cells) may be missing from the coarse
+    // modes, and random columns give every mode a component for Rayleigh-Ritz to grow.
+    let random = (guard(need) / 2).max(2);
     if let Some((fine, w)) = &vectors {
-        let take = (*w).min(m - col.min(m)).min(m.saturating_sub(rigid));
+        let take = (*w)
+            .min(m.saturating_sub(col + random))
+            .min(m.saturating_sub(rigid));
         put(fine, *w, take, &mut col);
     }
     if col < m {

@@ -24,6 +24,7 @@
 
 use super::factor::ShiftedCholesky;
 use super::{EigenError, Operators};
+use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
 use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
@@ -144,9 +145,11 @@ impl Multigrid {
             ]);
         }
         // Level matrices are K and M until tau is known (from the coarsest level).
+        let mut fine_a = zeroed(model.k.len());
+        fine_a.copy_from_slice(&model.k);
         let mut levels = vec![Level::new(
             model.pattern.clone(),
-            model.k.clone(),
+            fine_a,
             model.lattice,
             model.lattice_node.clone(),
             fine_coords,
@@ -355,14 +358,17 @@ impl Level {
                 invert3(&self.a[b]).map(|v| v as Real)
             })
             .collect();
-        self.a_real = self.a.iter().map(|b| b.map(|v| v as Real)).collect();
+        self.a_real = zeroed(self.a.len());
+        for (r, a) in self.a_real.iter_mut().zip(&self.a) {
+            *r = a.map(|v| v as Real);
+        }
         self.a = Vec::new();
         let n = 3 * nodes;
         let size = n * max_width;
-        self.rhs = vec![0.0; size];
-        self.x = vec![0.0; size];
-        self.r = vec![0.0; size];
-        self.d = vec![0.0; size];
+        self.rhs = zeroed(size);
+        self.x = zeroed(size);
+        self.r = zeroed(size);
+        self.d = zeroed(size);
         // Power iteration on D^-1 A (as the V-cycle applies it) with a fixed pseudo-random start.
         let mut v: Vec<Real> = (0..n)
             .map(|i| ((i * 7919 % 1013) as Real / 1013.0) - 0.45)
@@ -629,8 +635,8 @@ fn assemble(mesh: &CellMesh) -> (Level, Blocks, Blocks) {
         .flat_map(|c| corners(*c).map(|l| lattice_node[l]).collect::<Vec<_>>())
         .collect();
     let pattern = BlockPattern::from_elements(coords.len(), &elements, 8);
-    let mut k = vec![[0.0; 9]; pattern.col.len()];
-    let mut m = vec![[0.0; 9]; pattern.col.len()];
+    let mut k = zeroed(pattern.col.len());
+    let mut m = zeroed(pattern.col.len());
     sparse::add_elements(
         &pattern,
         &elements,
