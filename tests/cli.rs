@@ -447,6 +447,36 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     assert!(error("plate", "8", "hex27") < error("plate", "8", "hex8"));
     let png = std::fs::read(dir.path().join("chart.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // Re-plotting the CSV with a row appended by another method (as the neural predictor will).
+    let csv_path = dir.path().join("chart.csv");
+    let extra = format!("{csv}plate,8,neural,predictor,0e0,0,0.3,4.2,6.0\n");
+    std::fs::write(&csv_path, extra).unwrap();
+    let replot = dir.path().join("replot");
+    let out = modalforge(&[
+        "chart",
+        "--from",
+        csv_path.to_str().unwrap(),
+        "--out",
+        replot.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("25 runs"));
+    assert_eq!(&std::fs::read(replot.join("chart.png")).unwrap()[..4], b"\x89PNG");
+    // A malformed row is one clear line naming the row, and no PNG.
+    std::fs::write(&csv_path, format!("{csv}plate,8,hex8i,lobpcg,1e-6,10,NaN,1,1\n")).unwrap();
+    let bad = dir.path().join("bad");
+    let out = modalforge(&[
+        "chart",
+        "--from",
+        csv_path.to_str().unwrap(),
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("line 26") && err.contains("field 7"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!bad.join("chart.png").exists());
 }
 
 #[test]

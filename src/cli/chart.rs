@@ -25,6 +25,10 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// The first line of `chart.csv`.
+pub const CSV_HEADER: &str =
+    "shape,resolution,element,solver,tolerance,dofs,time_ms,mean_error_percent,max_error_percent";
+
 /// Frequencies compared per run.
 pub const CHART_MODES: usize = 10;
 
@@ -44,19 +48,23 @@ pub struct ChartArgs {
     /// A small sweep (resolutions 6 and 8, reference 10) that runs in seconds.
     #[arg(long)]
     pub quick: bool,
+    /// Plot an existing chart CSV (e.g. one that other methods appended rows to) instead of
+    /// running the sweep; writes DIR/chart.png only.
+    #[arg(long, value_name = "CSV", conflicts_with = "quick")]
+    pub from: Option<PathBuf>,
 }
 
 /// One solve of the sweep.
 #[derive(Clone, Debug)]
 pub struct ChartPoint {
     /// Benchmark shape.
-    pub shape: &'static str,
+    pub shape: String,
     /// Voxels along the longest side.
     pub resolution: usize,
     /// Element name.
-    pub element: &'static str,
+    pub element: String,
     /// Solver name.
-    pub solver: &'static str,
+    pub solver: String,
     /// Residual tolerance.
     pub tolerance: f64,
     /// Degrees of freedom.
@@ -183,10 +191,10 @@ pub fn sweep(
                     .map(|(f, r)| 100.0 * (f - r).abs() / r)
                     .collect();
                 let point = ChartPoint {
-                    shape: name,
+                    shape: name.to_string(),
                     resolution: n,
-                    element: kind.name(),
-                    solver: solver.name(),
+                    element: kind.name().to_string(),
+                    solver: solver.name().to_string(),
                     tolerance,
                     dofs,
                     time_ms: ms,
@@ -203,9 +211,7 @@ pub fn sweep(
 
 /// The CSV text of a sweep.
 pub fn to_csv(points: &[ChartPoint]) -> String {
-    let mut out = String::from(
-        "shape,resolution,element,solver,tolerance,dofs,time_ms,mean_error_percent,max_error_percent\n",
-    );
+    let mut out = format!("{CSV_HEADER}\n");
     for p in points {
         let _ = writeln!(
             out,
@@ -224,16 +230,64 @@ pub fn to_csv(points: &[ChartPoint]) -> String {
     out
 }
 
-/// Draws the log-log chart of mean error against time: colour per element, marker per solver.
+/// Parses a chart CSV (the format [`to_csv`] writes; extra rows from other methods welcome).
+pub fn from_csv(text: &str) -> Result<Vec<ChartPoint>, String> {
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default();
+    if header.trim() != CSV_HEADER {
+        return Err(format!("the first line must be the header '{CSV_HEADER}'"));
+    }
+    let mut points = Vec::new();
+    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let row = i + 2;
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        if f.len() != 9 {
+            return Err(format!(
+                "line {row}: expected 9 comma-separated fields, found {}",
+                f.len()
+            ));
+        }
+        let num = |k: usize| -> Result<f64, String> {
+            f[k].parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .ok_or_else(|| {
+                    format!(
+                        "line {row}: field {} ('{}') is not a number >= 0",
+                        k + 1,
+                        f[k]
+                    )
+                })
+        };
+        points.push(ChartPoint {
+            shape: f[0].to_string(),
+            resolution: num(1)? as usize,
+            element: f[2].to_string(),
+            solver: f[3].to_string(),
+            tolerance: num(4)?,
+            dofs: num(5)? as usize,
+            time_ms: num(6)?,
+            mean_error_percent: num(7)?,
+            max_error_percent: num(8)?,
+        });
+    }
+    Ok(points)
+}
+
+/// Draws one log-log panel per shape, mean error against time: colour per element, marker per
+/// solver, and a line through each (element, solver, tolerance) series in resolution order.
 pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
     let fail = |e: &dyn std::fmt::Display| {
         CliError::Option(format!("chart: drawing {}: {e}", path.display()))
     };
+    if points.is_empty() {
+        return Err(CliError::Option("chart: no point to draw".into()));
+    }
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| CliError::Option("chart: the bundled font is unreadable".into()))?;
     let clamp = |v: f64| v.max(1e-3);
     let (t_lo, t_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
-        (lo.min(p.time_ms), hi.max(p.time_ms))
+        (lo.min(p.time_ms.max(0.1)), hi.max(p.time_ms.max(0.1)))
     });
     let (e_lo, e_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
         (
@@ -241,72 +295,120 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
             hi.max(clamp(p.mean_error_percent)),
         )
     });
-    if points.is_empty() {
-        return Err(CliError::Option("chart: no point to draw".into()));
+    let mut shapes: Vec<&str> = Vec::new();
+    for p in points {
+        if !shapes.contains(&p.shape.as_str()) {
+            shapes.push(&p.shape);
+        }
     }
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    let root = BitMapBackend::new(path, (600 * shapes.len() as u32 + 40, 760)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "ModalForge: mean error of the lowest 10 frequencies vs solve time (one core)",
+    let root = root
+        .titled(
+            "ModalForge: mean error of the lowest 10 frequencies vs assembly + solve time (one core)",
             ("sans-serif", 24),
         )
-        .margin(20)
-        .x_label_area_size(50)
-        .y_label_area_size(70)
-        .build_cartesian_2d(
-            (t_lo * 0.7..t_hi * 1.4).log_scale(),
-            (e_lo * 0.7..e_hi * 1.4).log_scale(),
-        )
         .map_err(|e| fail(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("assembly + solve time (ms)")
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .y_label_formatter(&|v| format!("{v:.2}"))
-        .y_desc("mean frequency error (%)")
-        .label_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| fail(&e))?;
-    let colours = [("hex8", RED), ("hex8i", BLUE), ("hex27", GREEN)];
-    for (element, colour) in colours {
-        for solver in ["lanczos", "lobpcg"] {
-            let series: Vec<(f64, f64)> = points
-                .iter()
-                .filter(|p| p.element == element && p.solver == solver)
-                .map(|p| (p.time_ms, clamp(p.mean_error_percent)))
-                .collect();
-            if series.is_empty() {
-                continue;
+    let palette = [
+        ("hex8", RGBColor(214, 39, 40)),
+        ("hex8i", RGBColor(31, 119, 180)),
+        ("hex27", RGBColor(44, 160, 44)),
+    ];
+    let colour_of = |element: &str| {
+        palette
+            .iter()
+            .find(|(e, _)| *e == element)
+            .map(|(_, c)| *c)
+            .unwrap_or(RGBColor(120, 120, 120))
+    };
+    for (panel, shape) in root.split_evenly((1, shapes.len())).iter().zip(&shapes) {
+        let mut chart = ChartBuilder::on(panel)
+            .caption(*shape, ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(50)
+            .y_label_area_size(70)
+            .build_cartesian_2d(
+                (t_lo * 0.7..t_hi * 1.4).log_scale(),
+                (e_lo * 0.7..e_hi * 1.4).log_scale(),
+            )
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc("time (ms)")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.2}"))
+            .y_desc("mean frequency error (%)")
+            .label_style(("sans-serif", 15))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        let mut series: Vec<(&str, &str, f64)> = Vec::new();
+        for p in points.iter().filter(|p| p.shape == *shape) {
+            let key = (p.element.as_str(), p.solver.as_str(), p.tolerance);
+            if !series.contains(&key) {
+                series.push(key);
             }
-            let label = format!("{element} {solver}");
+        }
+        for (element, solver, tolerance) in series {
+            let mut run: Vec<&ChartPoint> = points
+                .iter()
+                .filter(|p| {
+                    p.shape == *shape
+                        && p.element == element
+                        && p.solver == solver
+                        && p.tolerance == tolerance
+                })
+                .collect();
+            run.sort_by_key(|p| p.resolution);
+            let xy: Vec<(f64, f64)> = run
+                .iter()
+                .map(|p| (p.time_ms.max(0.1), clamp(p.mean_error_percent)))
+                .collect();
+            let colour = colour_of(element);
+            let line = if tolerance > 1e-5 {
+                colour.mix(0.35).stroke_width(1)
+            } else {
+                colour.mix(0.8).stroke_width(2)
+            };
+            chart
+                .draw_series(LineSeries::new(xy.clone(), line))
+                .map_err(|e| fail(&e))?;
             let style = colour.filled();
+            let label = format!("{element} {solver} {tolerance:.0e}");
             if solver == "lanczos" {
                 chart
-                    .draw_series(series.iter().map(|&(x, y)| Circle::new((x, y), 5, style)))
+                    .draw_series(xy.iter().map(|&p| Circle::new(p, 5, style)))
                     .map_err(|e| fail(&e))?
                     .label(label)
                     .legend(move |(x, y)| Circle::new((x, y), 5, style));
             } else {
                 chart
-                    .draw_series(
-                        series
-                            .iter()
-                            .map(|&(x, y)| TriangleMarker::new((x, y), 6, style)),
-                    )
+                    .draw_series(xy.iter().map(|&p| TriangleMarker::new(p, 6, style)))
                     .map_err(|e| fail(&e))?
                     .label(label)
                     .legend(move |(x, y)| TriangleMarker::new((x, y), 6, style));
             }
+            // Resolution beside each point of the accurate runs.
+            if tolerance <= 1e-5 && solver != "lanczos" || element == "hex8" {
+                chart
+                    .draw_series(run.iter().zip(&xy).map(|(p, &(x, y))| {
+                        Text::new(
+                            format!("{}", p.resolution),
+                            (x * 1.08, y),
+                            ("sans-serif", 12).into_font().color(&colour),
+                        )
+                    }))
+                    .map_err(|e| fail(&e))?;
+            }
         }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(|e| fail(&e))?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .draw()
-        .map_err(|e| fail(&e))?;
     root.present().map_err(|e| fail(&e))?;
     Ok(())
 }
@@ -315,6 +417,15 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
 pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::Option(format!("cannot create {}: {e}", args.out.display())))?;
+    if let Some(csv) = &args.from {
+        let text = std::fs::read_to_string(csv)
+            .map_err(|e| CliError::Option(format!("cannot read {}: {e}", csv.display())))?;
+        let points =
+            from_csv(&text).map_err(|e| CliError::Option(format!("{}: {e}", csv.display())))?;
+        let png = args.out.join("chart.png");
+        plot(&points, &png)?;
+        return Ok(format!("wrote {} ({} runs)", png.display(), points.len()));
+    }
     let points = sweep(args.quick, |p| {
         eprintln!(
             "{} {}^3 {} {} tol {:e}: {} dofs, {:.0} ms, mean error {:.3} %",
