@@ -430,8 +430,8 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     let rows: Vec<Vec<String>> = lines
         .map(|l| l.split(',').map(str::to_string).collect())
         .collect();
-    // 2 shapes x 2 resolutions x 6 (element, solver, tolerance) runs.
-    assert_eq!(rows.len(), 24);
+    // 2 shapes x 2 resolutions x 5 (element, solver) runs.
+    assert_eq!(rows.len(), 20);
     let error = |shape: &str, n: &str, element: &str| -> f64 {
         rows.iter()
             .find(|r| r[0] == shape && r[1] == n && r[2] == element && r[3] == "lanczos")
@@ -459,11 +459,22 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
         "--out",
         replot.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stdout).contains("25 runs"));
-    assert_eq!(&std::fs::read(replot.join("chart.png")).unwrap()[..4], b"\x89PNG");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("21 runs"));
+    assert_eq!(
+        &std::fs::read(replot.join("chart.png")).unwrap()[..4],
+        b"\x89PNG"
+    );
     // A malformed row is one clear line naming the row, and no PNG.
-    std::fs::write(&csv_path, format!("{csv}plate,8,hex8i,lobpcg,1e-6,10,NaN,1,1\n")).unwrap();
+    std::fs::write(
+        &csv_path,
+        format!("{csv}plate,8,hex8i,lobpcg,1e-6,10,NaN,1,1\n"),
+    )
+    .unwrap();
     let bad = dir.path().join("bad");
     let out = modalforge(&[
         "chart",
@@ -474,7 +485,7 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("line 26") && err.contains("field 7"), "{err}");
+    assert!(err.contains("line 22") && err.contains("field 7"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(!bad.join("chart.png").exists());
 }

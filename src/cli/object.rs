@@ -60,7 +60,7 @@ pub struct ObjectArgs {
     /// Eigensolver: lanczos (shift-invert on a sparse Cholesky) or lobpcg.
     #[arg(long, value_name = "NAME", default_value = "lanczos")]
     pub solver: String,
-    /// Residual tolerance of the eigensolver (NeuralSound eq. 6).
+    /// Residual tolerance of the eigensolver (NeuralSound eq. 6); LOBPCG never stops above 1e-6.
     #[arg(long, value_name = "TOL", default_value_t = crate::eigen::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
     /// Strike point X,Y,Z in metres from the object's minimum corner (snapped to the nearest
