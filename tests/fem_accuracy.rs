@@ -138,6 +138,8 @@ fn a_64_cubed_solid_gets_a_clear_error_from_the_direct_solver() {
         "box:64x64x64",
         "--modes",
         "20",
+        "--solver",
+        "lanczos",
     ];
     let cli = <Cli as clap::Parser>::try_parse_from(argv).unwrap();
     let e = run(cli).unwrap_err().to_string();

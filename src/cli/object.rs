@@ -57,8 +57,9 @@ pub struct ObjectArgs {
     /// (quadratic, most accurate) or hex8 (plain trilinear, the papers' reference; stiff).
     #[arg(long, value_name = "NAME", default_value = "hex8i")]
     pub element: String,
-    /// Eigensolver: lanczos (shift-invert on a sparse Cholesky) or lobpcg.
-    #[arg(long, value_name = "NAME", default_value = "lanczos")]
+    /// Eigensolver: auto (LOBPCG from 30k DOFs, else Lanczos), lanczos (shift-invert on a
+    /// sparse Cholesky) or lobpcg (multigrid-preconditioned).
+    #[arg(long, value_name = "NAME", default_value = "auto")]
     pub solver: String,
     /// Residual tolerance of the eigensolver (NeuralSound eq. 6); LOBPCG never stops above 1e-6.
     #[arg(long, value_name = "TOL", default_value_t = crate::eigen::DEFAULT_TOLERANCE)]
@@ -185,9 +186,10 @@ impl Object {
         let solver = match args.solver.as_str() {
             "lanczos" => SolverKind::Lanczos,
             "lobpcg" => SolverKind::Lobpcg,
+            "auto" => SolverKind::Auto,
             s => {
                 return Err(ObjectError::Option(format!(
-                    "--solver {s} is unknown: use lanczos or lobpcg"
+                    "--solver {s} is unknown: use auto, lanczos or lobpcg"
                 )))
             }
         };
@@ -417,7 +419,7 @@ pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesRepo
         grid: object.grid.dims(),
         voxel_size_m: h,
         element: object.element.name(),
-        solver: object.solver.name(),
+        solver: sol.solver.name(),
         material: object.material.name.clone(),
         hit_m: hit.point_m,
     })

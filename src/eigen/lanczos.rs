@@ -255,7 +255,14 @@ pub fn run(
                 setup_ms,
                 iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
             };
-            return Ok(solution(&pairs, &sel, x.as_ref(), timings, restart));
+            return Ok(solution(
+                &pairs,
+                &sel,
+                x.as_ref(),
+                timings,
+                restart,
+                super::SolverKind::Lanczos,
+            ));
         }
         let rigid = sel.rigid;
         // Not done: how many pairs are wanted now that the rigid count is known?

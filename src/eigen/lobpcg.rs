@@ -574,7 +574,14 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
                 iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
             };
             let x = done.x.view(Part::X);
-            return Ok(solution(&pairs, &sel, x, timings, iterations));
+            return Ok(solution(
+                &pairs,
+                &sel,
+                x,
+                timings,
+                iterations,
+                super::SolverKind::Lobpcg,
+            ));
         }
         let rigid = sel.rigid;
         // More rigid modes than the coarse level showed, or more modes below the bound: grow.
