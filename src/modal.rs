@@ -38,8 +38,40 @@ pub struct ModeBasis {
     pub components: usize,
     /// Assembly time, ms.
     pub assemble_ms: f64,
-    /// Solver used.
+    /// Solver that produced the solution (`Auto` resolved).
     pub solver: SolverKind,
+    /// The shape's exposed voxel faces, found once so that voicing a strike does not rescan
+    /// the grid.
+    surface: Vec<Face>,
+}
+
+/// An exposed voxel face: the voxel, the axis of the face's normal and its side (-1 or +1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Face {
+    voxel: [usize; 3],
+    axis: usize,
+    side: isize,
+}
+
+/// Every voxel face with no solid neighbour across it.
+fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
+    let mut out = Vec::new();
+    for v in grid.solid_voxels() {
+        for axis in 0..3 {
+            for side in [-1isize, 1] {
+                let mut nb = v.map(|c| c as isize);
+                nb[axis] += side;
+                if !grid.get(nb[0], nb[1], nb[2]) {
+                    out.push(Face {
+                        voxel: v,
+                        axis,
+                        side,
+                    });
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Why a shape could not be solved.
@@ -108,9 +140,10 @@ impl ModeBasis {
             shape_hash: grid.shape_hash(),
             components: ops::components(grid).1,
             model,
+            solver: solution.solver,
             solution,
             assemble_ms,
-            solver,
+            surface: exposed_faces(grid),
         })
     }
 
@@ -250,31 +283,23 @@ impl ModeBasis {
             )));
         }
         let p = hit.point_m.map(|c| c / voxel_size_m);
-        let solid: std::collections::HashSet<[usize; 3]> =
-            self.model.voxels.iter().copied().collect();
-        let is_solid =
-            |v: [isize; 3]| v.iter().all(|&c| c >= 0) && solid.contains(&v.map(|c| c as usize));
         let mut best: Option<(f64, [usize; 3], usize, isize)> = None;
-        for v in &self.model.voxels {
-            for axis in 0..3 {
-                for side in [-1isize, 1] {
-                    let mut nb = v.map(|c| c as isize);
-                    nb[axis] += side;
-                    if is_solid(nb) {
-                        continue;
-                    }
-                    // Distance from p to the unit face square.
-                    let plane = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
-                    let mut d2 = (p[axis] - plane).powi(2);
-                    for a in (0..3).filter(|&a| a != axis) {
-                        let lo = v[a] as f64;
-                        let c = p[a].clamp(lo, lo + 1.0);
-                        d2 += (p[a] - c).powi(2);
-                    }
-                    if best.is_none_or(|b| d2 < b.0) {
-                        best = Some((d2, *v, axis, side));
-                    }
-                }
+        for &Face {
+            voxel: v,
+            axis,
+            side,
+        } in &self.surface
+        {
+            // Distance from p to the unit face square.
+            let plane = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
+            let mut d2 = (p[axis] - plane).powi(2);
+            for a in (0..3).filter(|&a| a != axis) {
+                let lo = v[a] as f64;
+                let c = p[a].clamp(lo, lo + 1.0);
+                d2 += (p[a] - c).powi(2);
+            }
+            if best.is_none_or(|b| d2 < b.0) {
+                best = Some((d2, v, axis, side));
             }
         }
         let (_, v, axis, side) =
@@ -307,5 +332,31 @@ impl ModeBasis {
         let mut normal = [0.0; 3];
         normal[axis] = -(side as f64);
         Ok((out, normal))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Face counts from Euler-style counting: a box of a x b x c voxels exposes
+    /// 2 (ab + bc + ca) faces, whatever its position in the grid; a hollow cavity adds its
+    /// inner walls.
+    #[test]
+    fn exposed_faces_are_the_surface() {
+        let boxed = |a: usize, b: usize, c: usize| {
+            VoxelGrid::from_fn([a + 2, b + 2, c + 2], 1.0, |x, y, z| {
+                (1.0..=a as f64 + 1.0).contains(&x)
+                    && (1.0..=b as f64 + 1.0).contains(&y)
+                    && (1.0..=c as f64 + 1.0).contains(&z)
+            })
+            .unwrap()
+        };
+        assert_eq!(exposed_faces(&boxed(1, 1, 1)).len(), 6);
+        assert_eq!(exposed_faces(&boxed(4, 2, 3)).len(), 2 * (8 + 6 + 12));
+        // A 3^3 cube touching the grid's faces, with its centre voxel removed: 54 + 6.
+        let mut g = VoxelGrid::from_fn([3, 3, 3], 1.0, |_, _, _| true).unwrap();
+        g.set(1, 1, 1, false);
+        assert_eq!(exposed_faces(&g).len(), 60);
     }
 }
