@@ -11,86 +11,44 @@
 use super::{BlockPattern, RowBlock};
 use std::ops::{AddAssign, Mul};
 
-/// A precision the block kernels run in (`f64` or `f32`).
+/// A block kernel `Y = A X` whose caller has checked the slice lengths and the CPU features
+/// the kernel was compiled for.
+#[doc(hidden)]
+pub type Kernel<T> = unsafe fn(&BlockPattern, &[[T; 9]], &[T], &mut [T], RowBlock);
+
+/// A precision the block kernels run in (`f64` or `f32`), with its SIMD kernels.
 pub trait Scalar: Copy + Default + Mul<Output = Self> + AddAssign + Send + Sync + 'static {
     /// Rounds an `f64` to this precision.
     fn from_f64(v: f64) -> Self;
-    /// The value as `f64`.
-    fn to_f64(self) -> f64;
-    /// The fastest kernel this CPU runs for this precision (lengths already checked).
+    /// The kernel for CPUs with AVX-512F.
+    #[cfg(target_arch = "x86_64")]
     #[doc(hidden)]
-    fn spmm_dispatch(
-        pattern: &BlockPattern,
-        a: &[[Self; 9]],
-        x: &[Self],
-        y: &mut [Self],
-        l: RowBlock,
-    );
+    const AVX512: Kernel<Self>;
+    /// The kernel for CPUs with AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[doc(hidden)]
+    const AVX2: Kernel<Self>;
 }
 
 impl Scalar for f64 {
     fn from_f64(v: f64) -> Self {
         v
     }
-    fn to_f64(self) -> f64 {
-        self
-    }
-    fn spmm_dispatch(
-        pattern: &BlockPattern,
-        a: &[[f64; 9]],
-        x: &[f64],
-        y: &mut [f64],
-        l: RowBlock,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above; it implies AVX2 and FMA),
-            // the only requirement of a `target_feature` function; `spmm` checked the lengths.
-            unsafe { spmm_avx512(pattern, a, x, y, l) };
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the CPU supports AVX2 and FMA (checked just above); `spmm` checked the
-            // lengths.
-            unsafe { spmm_avx2(pattern, a, x, y, l) };
-            return;
-        }
-        spmm_kernel(pattern, a, x, y, l);
-    }
+    #[cfg(target_arch = "x86_64")]
+    const AVX512: Kernel<f64> = spmm_avx512;
+    #[cfg(target_arch = "x86_64")]
+    const AVX2: Kernel<f64> = spmm_avx2;
 }
 
 impl Scalar for f32 {
     fn from_f64(v: f64) -> Self {
         v as f32
     }
-    fn to_f64(self) -> f64 {
-        self as f64
-    }
-    fn spmm_dispatch(
-        pattern: &BlockPattern,
-        a: &[[f32; 9]],
-        x: &[f32],
-        y: &mut [f32],
-        l: RowBlock,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked just above); `spmm` checked the lengths.
-            unsafe { spmm_avx512_f32(pattern, a, x, y, l) };
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the CPU supports AVX2 and FMA (checked just above); the kernel is the
-            // portable code, compiled for AVX2.
-            unsafe { spmm_portable_avx2(pattern, a, x, y, l) };
-            return;
-        }
-        spmm_kernel(pattern, a, x, y, l);
-    }
+    #[cfg(target_arch = "x86_64")]
+    const AVX512: Kernel<f32> = spmm_avx512_f32;
+    // No hand-written f32 AVX2 kernel: the portable one, compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    const AVX2: Kernel<f32> = spmm_portable_avx2::<f32>;
 }
 
 /// `Y = A X` for a block of vectors (see [`RowBlock`]); `x` and `y` start at the block's first
@@ -105,7 +63,20 @@ pub fn spmm<T: Scalar>(
     let need = (3 * pattern.nodes()).saturating_sub(1) * layout.stride + layout.width;
     assert!(layout.width <= layout.stride && x.len() >= need && y.len() >= need);
     assert_eq!(a.len(), pattern.col.len(), "one block per pattern entry");
-    T::spmm_dispatch(pattern, a, x, y, layout);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU supports AVX-512F (checked just above; it implies AVX2 and FMA), the
+        // only requirement of the `target_feature` kernel; the lengths were asserted above.
+        unsafe { T::AVX512(pattern, a, x, y, layout) };
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports AVX2 and FMA (checked just above); lengths as above.
+        unsafe { T::AVX2(pattern, a, x, y, layout) };
+        return;
+    }
+    spmm_kernel(pattern, a, x, y, layout);
 }
 
 /// The AVX2/FMA kernel: every node row through [`row_avx2`].
