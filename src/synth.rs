@@ -23,7 +23,7 @@ pub mod simd;
 
 pub use biquad::{BiquadBank, BiquadCoeffs, BiquadError};
 pub use excitation::{Excitation, ExcitationError, ForcePulse, NoiseForce};
-pub use oscillator::{OscillatorBank, StrikeError};
+pub use oscillator::{OscillatorBank, RetuneError, StrikeError, Tuning};
 pub use simd::SimdBackend;
 
 /// Helpers shared by the banks' unit tests.

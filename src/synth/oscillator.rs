@@ -56,6 +56,8 @@ pub struct OscillatorBank {
     backend: SimdBackend,
     sample_rate_hz: f64,
     len: usize,
+    // Slots in use (low modes, then mirrored ones, each padded to PAD); the arrays hold more.
+    used: usize,
     // Kernel slot of each mode; slots from `split` on are mirrored (frequency above fs/4).
     slot: Vec<usize>,
     split: usize,
@@ -71,6 +73,57 @@ pub struct OscillatorBank {
     gain: Vec<f64>,
     since_anchor: usize,
     acc: Vec<f32>,
+    // Most modes `retune` accepts, and its scratch: each old mode's amplitude at the retune.
+    capacity: usize,
+    carried: Vec<Complex64>,
+}
+
+/// One mode given to [`OscillatorBank::retune`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tuning {
+    /// Damped frequency, Hz, in `(0, fs/2)`.
+    pub freq_hz: f64,
+    /// Amplitude decay rate, 1/s, in `[0, 2 pi freq_hz)` (an oscillating mode).
+    pub decay_per_s: f64,
+    /// The mode's own gain (used by [`OscillatorBank::strike`]).
+    pub gain: f64,
+    /// The current mode whose ringing this one continues, or `None` to start silent.
+    pub from: Option<usize>,
+}
+
+/// Why a retune was refused (the bank is left unchanged).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum RetuneError {
+    /// More modes than the bank was prepared for.
+    #[error("{got} modes do not fit a bank prepared for {capacity}")]
+    TooMany {
+        /// Modes given.
+        got: usize,
+        /// The bank's capacity.
+        capacity: usize,
+    },
+    /// A mode that cannot ring in this bank.
+    #[error(
+        "mode {index} ({freq_hz} Hz, decay {decay_per_s} /s) must lie in (0, fs/2) and oscillate"
+    )]
+    BadMode {
+        /// Index in the new modes.
+        index: usize,
+        /// Its frequency.
+        freq_hz: f64,
+        /// Its decay.
+        decay_per_s: f64,
+    },
+    /// `from` names a mode the bank does not have.
+    #[error("mode {index} continues mode {from}, but the bank plays {len}")]
+    NoSuchMode {
+        /// Index in the new modes.
+        index: usize,
+        /// The missing source mode.
+        from: usize,
+        /// Modes playing now.
+        len: usize,
+    },
 }
 
 impl OscillatorBank {
@@ -81,69 +134,167 @@ impl OscillatorBank {
 
     /// Prepares a bank on a given backend (falls back to `Portable` if the CPU lacks it).
     pub fn with_backend(modes: &PlayableModes, backend: SimdBackend) -> Self {
+        let mut bank = Self::with_capacity(modes.len(), modes.sample_rate_hz(), backend);
+        let tunings: Vec<Tuning> = (0..modes.len())
+            .map(|i| Tuning {
+                freq_hz: modes.freq_hz()[i],
+                decay_per_s: modes.decay_per_s()[i],
+                gain: modes.gain()[i],
+                from: None,
+            })
+            .collect();
+        bank.retune(&tunings)
+            .expect("playable modes are valid oscillator tunings");
+        bank
+    }
+
+    /// A silent bank with room for `capacity` modes and none tuned yet; [`Self::retune`] gives
+    /// it modes without allocating. Allocates.
+    pub fn with_capacity(capacity: usize, sample_rate_hz: f64, backend: SimdBackend) -> Self {
         let backend = if backend.is_available() {
             backend
         } else {
             SimdBackend::Portable
         };
-        let fs = modes.sample_rate_hz();
-        let len = modes.len();
-        // Modes above fs/4 run mirrored (see `kernel`): they take the slots after `split`.
-        let mirrored: Vec<bool> = modes.freq_hz().iter().map(|&f| f > 0.25 * fs).collect();
-        let n_high = mirrored.iter().filter(|&&m| m).count();
-        let split = padded_len(len - n_high);
-        let padded = split + padded_len(n_high);
-        let (mut next_low, mut next_high) = (0, split);
-        let mut slot = Vec::with_capacity(len);
-        let mut kappa = vec![0f32; padded];
-        let mut c2 = vec![0f32; padded];
-        let mut lambda = Vec::with_capacity(len);
-        let mut anchors = anchor::Anchors::new(padded);
-        for (i, &is_mirrored) in mirrored.iter().enumerate() {
-            let (f, d) = (modes.freq_hz()[i], modes.decay_per_s()[i]);
+        // Low and mirrored modes are padded separately: one extra pad covers both remainders.
+        let slots = padded_len(capacity) + PAD;
+        Self {
+            backend,
+            sample_rate_hz,
+            len: 0,
+            used: 0,
+            capacity,
+            slot: Vec::with_capacity(capacity),
+            split: 0,
+            y: vec![0.0; slots],
+            dy: vec![0.0; slots],
+            kappa: vec![0.0; slots],
+            c2: vec![0.0; slots],
+            anchors: anchor::Anchors::new(slots),
+            lambda: Vec::with_capacity(capacity),
+            gain: Vec::with_capacity(capacity),
+            since_anchor: 0,
+            acc: vec![0.0; 2 * ANCHOR_SAMPLES * PAD],
+            carried: vec![Complex64::new(0.0, 0.0); capacity],
+        }
+    }
+
+    /// Most modes [`Self::retune`] accepts.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Replaces the bank's modes with `modes` at the next sample, without allocating.
+    ///
+    /// A mode with `from: Some(i)` carries on ringing from the current mode `i`: its exact
+    /// complex amplitude now (the value it is about to play, and its phase) is kept and only its
+    /// frequency and decay change, so the output stays continuous (no click) and a damping
+    /// change acts on notes already ringing. Other modes start silent. The anchor grid restarts
+    /// at the next sample.
+    pub fn retune(&mut self, modes: &[Tuning]) -> Result<(), RetuneError> {
+        if modes.len() > self.capacity {
+            return Err(RetuneError::TooMany {
+                got: modes.len(),
+                capacity: self.capacity,
+            });
+        }
+        let fs = self.sample_rate_hz;
+        for (i, t) in modes.iter().enumerate() {
+            let valid = t.freq_hz > 0.0
+                && t.freq_hz < 0.5 * fs
+                && t.decay_per_s >= 0.0
+                && t.decay_per_s < TAU * t.freq_hz
+                && t.gain.is_finite();
+            if !valid {
+                return Err(RetuneError::BadMode {
+                    index: i,
+                    freq_hz: t.freq_hz,
+                    decay_per_s: t.decay_per_s,
+                });
+            }
+            if let Some(from) = t.from.filter(|&f| f >= self.len) {
+                return Err(RetuneError::NoSuchMode {
+                    index: i,
+                    from,
+                    len: self.len,
+                });
+            }
+        }
+        // Every current mode's exact amplitude at the next sample.
+        let dt = self.since_anchor as f64 / fs;
+        for i in 0..self.len {
+            let k = self.slot[i];
+            let z = Complex64::new(self.anchors.z_re[k], self.anchors.z_im[k]);
+            self.carried[i] = if self.since_anchor == 0 {
+                z
+            } else {
+                z * (self.lambda[i] * dt).exp()
+            };
+        }
+        // New layout: modes above fs/4 run mirrored (see `kernel`) in the slots after `split`.
+        let n_high = modes.iter().filter(|t| t.freq_hz > 0.25 * fs).count();
+        self.split = padded_len(modes.len() - n_high);
+        self.used = self.split + padded_len(n_high);
+        for v in [&mut self.y, &mut self.dy, &mut self.kappa, &mut self.c2] {
+            v.fill(0.0);
+        }
+        self.anchors.clear_all();
+        let (mut next_low, mut next_high) = (0, self.split);
+        self.slot.clear();
+        self.lambda.clear();
+        self.gain.clear();
+        for t in modes {
+            let (f, d) = (t.freq_hz, t.decay_per_s);
+            let mirrored = f > 0.25 * fs;
             let l = Complex64::new(-d, TAU * f);
             let r_minus_1 = (-d / fs).exp_m1();
             let r = 1.0 + r_minus_1;
             // The recurrence runs at w, or mirrored at pi - w; both kept in (0, pi/2].
-            let (k, w) = if is_mirrored {
+            let (k, w) = if mirrored {
                 next_high += 1;
                 (next_high - 1, TAU * (0.5 * fs - f) / fs)
             } else {
                 next_low += 1;
                 (next_low - 1, TAU * f / fs)
             };
-            slot.push(k);
+            self.slot.push(k);
             // kappa = (1 - r)^2 + 4 r sin^2(w/2): no cancellation, full relative precision.
-            kappa[k] = (r_minus_1 * r_minus_1 + 4.0 * r * (0.5 * w).sin().powi(2)) as f32;
-            c2[k] = (r * r) as f32;
-            lambda.push(l);
+            self.kappa[k] = (r_minus_1 * r_minus_1 + 4.0 * r * (0.5 * w).sin().powi(2)) as f32;
+            self.c2[k] = (r * r) as f32;
+            self.lambda.push(l);
+            self.gain.push(t.gain);
             let step = (l * (ANCHOR_SAMPLES as f64 / fs)).exp();
-            (anchors.step_re[k], anchors.step_im[k]) = (step.re, step.im);
+            (self.anchors.step_re[k], self.anchors.step_im[k]) = (step.re, step.im);
             // Maps a complex amplitude to the kernel's second state variable: y[n] - y[n-1]
             // (1 - e^(-lambda/fs)), or mirrored z[n] - z[n-1] = +-(y[n] + y[n-1])
             // (1 + e^(-lambda/fs) = -expm1(-lambda/fs + i pi), small near Nyquist).
-            let back = if is_mirrored {
+            let back = if mirrored {
                 -(-l / fs + Complex64::new(0.0, std::f64::consts::PI)).exp_m1_complex()
             } else {
                 -(-l / fs).exp_m1_complex()
             };
-            (anchors.back_re[k], anchors.back_im[k]) = (back.re, back.im);
+            (self.anchors.back_re[k], self.anchors.back_im[k]) = (back.re, back.im);
+            if let Some(from) = t.from {
+                // The next sample is an anchor (even on the new grid): no mirror sign.
+                let c = self.carried[from];
+                (self.anchors.z_re[k], self.anchors.z_im[k]) = (c.re, c.im);
+                self.y[k] = c.im as f32;
+                self.dy[k] = self.anchors.second_state(k, c) as f32;
+            }
         }
-        Self {
-            backend,
-            sample_rate_hz: fs,
-            len,
-            slot,
-            split,
-            y: vec![0.0; padded],
-            dy: vec![0.0; padded],
-            kappa,
-            c2,
-            anchors,
-            lambda,
-            gain: modes.gain().to_vec(),
-            since_anchor: 0,
-            acc: vec![0.0; 2 * ANCHOR_SAMPLES * PAD],
+        self.len = modes.len();
+        self.since_anchor = 0;
+        Ok(())
+    }
+
+    /// Each mode's current amplitude `|z|` (bank mode order) into `out[..len]`, for deciding
+    /// which modes are quiet enough to drop. Never allocates.
+    pub fn amplitudes(&self, out: &mut [f64]) {
+        let dt = self.since_anchor as f64 / self.sample_rate_hz;
+        for (i, o) in out.iter_mut().take(self.len).enumerate() {
+            let k = self.slot[i];
+            let z = self.anchors.z_re[k].hypot(self.anchors.z_im[k]);
+            *o = z * (self.lambda[i].re * dt).exp();
         }
     }
 
@@ -241,10 +392,10 @@ impl OscillatorBank {
             kernel::render(
                 self.backend,
                 kernel::KernelArrays {
-                    y: &mut self.y,
-                    dy: &mut self.dy,
-                    kappa: &self.kappa,
-                    c2: &self.c2,
+                    y: &mut self.y[..self.used],
+                    dy: &mut self.dy[..self.used],
+                    kappa: &self.kappa[..self.used],
+                    c2: &self.c2[..self.used],
                 },
                 kernel::Mirror {
                     split: self.split,
@@ -261,8 +412,9 @@ impl OscillatorBank {
     /// Moves the exact state one anchor interval on and restarts the f32 recurrences from it.
     fn advance_anchor(&mut self) {
         // Anchors fall on even samples (ANCHOR_SAMPLES is even): no mirror sign here.
+        let n = self.used;
         self.anchors
-            .advance(self.backend, &mut self.y, &mut self.dy);
+            .advance(self.backend, &mut self.y[..n], &mut self.dy[..n]);
         self.since_anchor = 0;
     }
 }

@@ -41,7 +41,7 @@ impl Anchors {
         c.re * self.back_im[k] + c.im * self.back_re[k]
     }
 
-    /// Advances every slot one anchor interval and writes the f32 kernel state.
+    /// Advances the first `y.len()` slots one anchor interval and writes the f32 kernel state.
     pub fn advance(&mut self, backend: SimdBackend, y: &mut [f32], dy: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
         if backend == SimdBackend::Avx2Fma && SimdBackend::Avx2Fma.is_available() {
@@ -57,6 +57,20 @@ impl Anchors {
         self.z_re.fill(0.0);
         self.z_im.fill(0.0);
     }
+
+    /// Silences every slot and zeroes its constants (before a new layout is written).
+    pub fn clear_all(&mut self) {
+        for v in [
+            &mut self.z_re,
+            &mut self.z_im,
+            &mut self.step_re,
+            &mut self.step_im,
+            &mut self.back_re,
+            &mut self.back_im,
+        ] {
+            v.fill(0.0);
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -67,7 +81,8 @@ unsafe fn advance_avx2(a: &mut Anchors, y: &mut [f32], dy: &mut [f32]) {
 
 #[inline(always)]
 fn advance_plain(a: &mut Anchors, y: &mut [f32], dy: &mut [f32]) {
-    let n = a.z_re.len();
+    // The slots in use: `y` is cut to them.
+    let n = y.len();
     let (zr, zi) = (&mut a.z_re[..n], &mut a.z_im[..n]);
     let (sr, si, br, bi) = (
         &a.step_re[..n],

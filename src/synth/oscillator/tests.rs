@@ -208,3 +208,174 @@ fn invalid_strikes_are_refused() {
         "a refused strike must leave the bank silent"
     );
 }
+
+/// Three tunings, one mirrored (above fs/4), each continuing the same-numbered current mode.
+fn carried(freqs: &[f64], decays: &[f64]) -> Vec<Tuning> {
+    freqs
+        .iter()
+        .zip(decays)
+        .enumerate()
+        .map(|(i, (&freq_hz, &decay_per_s))| Tuning {
+            freq_hz,
+            decay_per_s,
+            gain: 1.0,
+            from: Some(i),
+        })
+        .collect()
+}
+
+#[test]
+fn retune_continues_each_mode_from_its_exact_state() {
+    // Truth: a mode struck at t = 0 with lambda1 and retuned at sample t0 to lambda2 rings as
+    // Im(z(t0) e^(lambda2 (t - t0))) with z(t0) = e^(lambda1 t0): phase and amplitude carry on,
+    // only frequency and decay change. Same 1e-5-of-peak budget as the drift tests (the f32
+    // recurrence between anchors), at an off-grid t0 (mid anchor interval) and on every backend.
+    let fs = 48000.0;
+    let (f1, d1) = ([440.0, 3000.0, 15000.0], [2.0, 5.0, 9.0]);
+    let (f2, d2) = ([470.0, 2950.0, 14000.0], [20.0, 1.0, 9.0]);
+    let t0 = 10_037;
+    for backend in SimdBackend::all_available() {
+        let mut bank = OscillatorBank::with_capacity(8, fs, backend);
+        bank.retune(
+            &carried(&f1, &d1)
+                .iter()
+                .map(|t| Tuning { from: None, ..*t })
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
+        bank.strike(Excitation::Impulse, 1.0).unwrap();
+        let mut out = vec![0f32; 2 * t0];
+        bank.render(&mut out[..t0]);
+        bank.retune(&carried(&f2, &d2)).unwrap();
+        bank.render(&mut out[t0..]);
+        let worst = out
+            .iter()
+            .enumerate()
+            .map(|(n, &y)| {
+                let want: f64 = (0..3)
+                    .map(|i| {
+                        let l1 = Complex64::new(-d1[i], TAU * f1[i]);
+                        let l2 = Complex64::new(-d2[i], TAU * f2[i]);
+                        let t = n as f64 / fs;
+                        let z = if n < t0 {
+                            (l1 * t).exp()
+                        } else {
+                            (l1 * (t0 as f64 / fs)).exp() * (l2 * (t - t0 as f64 / fs)).exp()
+                        };
+                        z.im
+                    })
+                    .sum();
+                (y as f64 - want).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 3e-5,
+            "{backend:?}: max error {worst:e} (3 modes of peak 1)"
+        );
+    }
+}
+
+#[test]
+fn retune_reorders_drops_and_adds_modes() {
+    // Mode 1 alone carries on (as new mode 0); the new mode 1 starts silent and rings only after
+    // the next strike. Truth: the analytic sines.
+    let fs = 48000.0;
+    let mut bank = OscillatorBank::with_capacity(4, fs, SimdBackend::detect());
+    let first = [(300.0, 1.0), (700.0, 2.0), (1100.0, 3.0)].map(|(freq_hz, decay_per_s)| Tuning {
+        freq_hz,
+        decay_per_s,
+        gain: 1.0,
+        from: None,
+    });
+    bank.retune(&first).unwrap();
+    assert_eq!(bank.len(), 3);
+    bank.strike(Excitation::Impulse, 1.0).unwrap();
+    let mut out = vec![0f32; 6400];
+    bank.render(&mut out[..3200]);
+    let next = [
+        Tuning {
+            freq_hz: 700.0,
+            decay_per_s: 2.0,
+            gain: 1.0,
+            from: Some(1),
+        },
+        Tuning {
+            freq_hz: 5000.0,
+            decay_per_s: 4.0,
+            gain: 0.5,
+            from: None,
+        },
+    ];
+    bank.retune(&next).unwrap();
+    bank.render(&mut out[3200..]);
+    for (n, &y) in out.iter().enumerate().skip(3200) {
+        let want = analytic(700.0, 2.0, 1.0, fs, n, 0);
+        assert!((y as f64 - want).abs() < 1e-5, "sample {n}: {y} vs {want}");
+    }
+    let mut amps = [0.0; 2];
+    bank.amplitudes(&mut amps);
+    let t = 6400.0 / fs;
+    assert!((amps[0] - (-2.0 * t).exp()).abs() < 1e-9, "{amps:?}");
+    assert_eq!(amps[1], 0.0);
+}
+
+#[test]
+fn bad_retunes_are_refused_and_change_nothing() {
+    let fs = 48000.0;
+    let mut bank = OscillatorBank::with_capacity(2, fs, SimdBackend::detect());
+    let ok = Tuning {
+        freq_hz: 500.0,
+        decay_per_s: 1.0,
+        gain: 1.0,
+        from: None,
+    };
+    bank.retune(&[ok]).unwrap();
+    bank.strike(Excitation::Impulse, 1.0).unwrap();
+    let bad = [
+        (vec![ok; 3], "capacity"),
+        (
+            vec![Tuning {
+                freq_hz: 24000.0,
+                ..ok
+            }],
+            "Nyquist",
+        ),
+        (vec![Tuning { freq_hz: 0.0, ..ok }], "0 Hz"),
+        (
+            vec![Tuning {
+                decay_per_s: 5000.0,
+                ..ok
+            }],
+            "overdamped",
+        ),
+        (
+            vec![Tuning {
+                decay_per_s: f64::NAN,
+                ..ok
+            }],
+            "NaN decay",
+        ),
+        (
+            vec![Tuning {
+                gain: f64::INFINITY,
+                ..ok
+            }],
+            "infinite gain",
+        ),
+        (
+            vec![Tuning {
+                from: Some(1),
+                ..ok
+            }],
+            "missing source",
+        ),
+    ];
+    for (tunings, why) in bad {
+        assert!(bank.retune(&tunings).is_err(), "{why} accepted");
+    }
+    let mut out = vec![0f32; 480];
+    bank.render(&mut out);
+    for (n, &y) in out.iter().enumerate() {
+        assert!((y as f64 - analytic(500.0, 1.0, 1.0, fs, n, 0)).abs() < 1e-5);
+    }
+}
