@@ -9,6 +9,7 @@ pub mod buffer;
 pub mod cli;
 pub mod demo;
 pub mod eigen;
+pub mod engine;
 pub mod fem;
 pub mod material;
 pub mod modal;

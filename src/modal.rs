@@ -22,8 +22,28 @@ use crate::material::{DampedMode, Material};
 use crate::modes::{ModeError, ModeSet};
 use crate::shape::{ops, ShapeError, VoxelGrid};
 
-/// Nodes with interpolation weights over a struck face, and the face's inward normal.
-type FaceWeights = (Vec<(usize, f64)>, [f64; 3]);
+/// The nodes of a struck face with their interpolation weights (2x2 for hex8, 3x3 for
+/// hex27), and the face's inward normal.
+struct FaceWeights {
+    nodes: [(usize, f64); 9],
+    len: usize,
+    normal: [f64; 3],
+}
+
+/// What is wrong with a hit (a `Copy` error, so the audio thread can handle it without
+/// allocating).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum HitError {
+    /// A coordinate of the hit point is NaN or infinite.
+    #[error("hit point {0:?} must be finite")]
+    Point([f64; 3]),
+    /// The force direction is zero or not finite.
+    #[error("force direction {0:?} must be a non-zero finite vector")]
+    Direction([f64; 3]),
+    /// The shape has no exposed face.
+    #[error("the shape has no surface")]
+    NoSurface,
+}
 
 /// A shape's modes in reference units, reusable for any material (same `nu`), size and strike.
 #[derive(Clone, Debug)]
@@ -168,31 +188,54 @@ impl ModeBasis {
         voxel_size_m: f64,
         hit: &Hit,
     ) -> Result<Vec<f64>, ModalError> {
-        let (weights, normal) = self.face_weights(hit, voxel_size_m)?;
+        let mut out = vec![0.0; self.solution.vectors.ncols()];
+        self.reference_forces_into(hit, voxel_size_m, &mut out)
+            .map_err(|e| ModalError::BadHit(e.to_string()))?;
+        let scale = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
+        out.iter_mut().for_each(|f| *f *= scale);
+        Ok(out)
+    }
+
+    /// Reference-unit mode values at the hit dotted with the force direction, one per mode,
+    /// into `out` (at least as long as the mode count). Multiply by `1 / sqrt(rho h^3)` for
+    /// physical units. Never allocates: the engine calls it on the audio thread.
+    pub fn reference_forces_into(
+        &self,
+        hit: &Hit,
+        voxel_size_m: f64,
+        out: &mut [f64],
+    ) -> Result<(), HitError> {
+        let face = self.face_weights(hit, voxel_size_m)?;
         let dir = match hit.direction {
             Some(d) => {
                 let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                 if !(n.is_finite() && n > 0.0) {
-                    return Err(ModalError::BadHit(format!(
-                        "force direction {d:?} must be a non-zero finite vector"
-                    )));
+                    return Err(HitError::Direction(d));
                 }
                 [d[0] / n, d[1] / n, d[2] / n]
             }
-            None => normal,
+            None => face.normal,
         };
-        let scale = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
         let v = &self.solution.vectors;
-        Ok((0..v.ncols())
-            .map(|i| {
-                let col = v.col_as_slice(i);
-                weights
-                    .iter()
-                    .map(|&(node, w)| w * (0..3).map(|c| col[3 * node + c] * dir[c]).sum::<f64>())
-                    .sum::<f64>()
-                    * scale
-            })
-            .collect())
+        for (i, o) in out.iter_mut().take(v.ncols()).enumerate() {
+            let col = v.col_as_slice(i);
+            *o = face.nodes[..face.len]
+                .iter()
+                .map(|&(node, w)| w * (0..3).map(|c| col[3 * node + c] * dir[c]).sum::<f64>())
+                .sum::<f64>();
+        }
+        Ok(())
+    }
+
+    /// Number of computed (non-rigid) modes.
+    pub fn mode_count(&self) -> usize {
+        self.solution.eigenvalues.len()
+    }
+
+    /// The grid's extent in voxels.
+    pub fn grid_dims(&self) -> [usize; 3] {
+        let p = self.model.kind.order();
+        self.model.lattice.map(|l| (l - 1) / p)
     }
 
     /// Applies a material, a voxel size and a strike: every computed mode, damped, with gains.
@@ -268,19 +311,11 @@ impl ModeBasis {
         }
     }
 
-    fn grid_dims(&self) -> [usize; 3] {
-        let p = self.model.kind.order();
-        self.model.lattice.map(|l| (l - 1) / p)
-    }
-
     /// Nodes and interpolation weights of the exposed face nearest to the hit, and the face's
-    /// inward normal.
-    fn face_weights(&self, hit: &Hit, voxel_size_m: f64) -> Result<FaceWeights, ModalError> {
+    /// inward normal. Never allocates.
+    fn face_weights(&self, hit: &Hit, voxel_size_m: f64) -> Result<FaceWeights, HitError> {
         if hit.point_m.iter().any(|c| !c.is_finite()) {
-            return Err(ModalError::BadHit(format!(
-                "hit point {:?} must be finite",
-                hit.point_m
-            )));
+            return Err(HitError::Point(hit.point_m));
         }
         let p = hit.point_m.map(|c| c / voxel_size_m);
         let mut best: Option<(f64, [usize; 3], usize, isize)> = None;
@@ -302,36 +337,40 @@ impl ModeBasis {
                 best = Some((d2, v, axis, side));
             }
         }
-        let (_, v, axis, side) =
-            best.ok_or_else(|| ModalError::BadHit("the shape has no surface".into()))?;
+        let (_, v, axis, side) = best.ok_or(HitError::NoSurface)?;
         let order = self.model.kind.order();
-        let others: Vec<usize> = (0..3).filter(|&a| a != axis).collect();
+        let others = [(axis + 1) % 3, (axis + 2) % 3];
         let local = |a: usize| (p[a] - v[a] as f64).clamp(0.0, 1.0);
         let (u, w) = (local(others[0]), local(others[1]));
-        let basis = |t: f64| -> Vec<f64> {
+        // Lagrange shape functions of the face's edge: linear (hex8) or quadratic (hex27).
+        let basis = |t: f64| -> [f64; 3] {
             if order == 1 {
-                vec![1.0 - t, t]
+                [1.0 - t, t, 0.0]
             } else {
                 let x = 2.0 * t - 1.0;
-                vec![x * (x - 1.0) / 2.0, 1.0 - x * x, x * (x + 1.0) / 2.0]
+                [x * (x - 1.0) / 2.0, 1.0 - x * x, x * (x + 1.0) / 2.0]
             }
         };
         let (bu, bw) = (basis(u), basis(w));
         let [lx, ly, _] = self.model.lattice;
-        let mut out = Vec::new();
-        for (i, &wu) in bu.iter().enumerate() {
-            for (j, &ww) in bw.iter().enumerate() {
+        let mut face = FaceWeights {
+            nodes: [(0, 0.0); 9],
+            len: 0,
+            normal: [0.0; 3],
+        };
+        for (i, &wu) in bu.iter().take(order + 1).enumerate() {
+            for (j, &ww) in bw.iter().take(order + 1).enumerate() {
                 let mut l = [order * v[0], order * v[1], order * v[2]];
                 l[axis] += if side > 0 { order } else { 0 };
                 l[others[0]] += i;
                 l[others[1]] += j;
                 let node = self.model.lattice_node[l[0] + lx * (l[1] + ly * l[2])];
-                out.push((node as usize, wu * ww));
+                face.nodes[face.len] = (node as usize, wu * ww);
+                face.len += 1;
             }
         }
-        let mut normal = [0.0; 3];
-        normal[axis] = -(side as f64);
-        Ok((out, normal))
+        face.normal[axis] = -(side as f64);
+        Ok(face)
     }
 }
 

@@ -179,6 +179,12 @@ impl OscillatorBank {
         }
     }
 
+    /// Frequency (Hz) and decay (1/s) of mode `i`.
+    pub fn tuning(&self, i: usize) -> (f64, f64) {
+        let l = self.lambda[i];
+        (l.im / TAU, -l.re)
+    }
+
     /// Most modes [`Self::retune`] accepts.
     pub fn capacity(&self) -> usize {
         self.capacity

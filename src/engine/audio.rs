@@ -1,0 +1,468 @@
+//! The audio side of the engine: voices, strikes, voicing changes, the mode budget, object
+//! swaps. Wait-free: [`AudioEngine::process`] never allocates, frees, locks, blocks or logs.
+//!
+//! Where it sits: the plugin's (or the CLI's) audio callback owns the [`AudioEngine`]; solved
+//! objects arrive from [`super::worker`] through an `rtrb` ring and the replaced ones go back
+//! through a second ring, to be freed on the worker. Lifecycle: [`super::Engine::start`]
+//! allocates everything (voices with their banks at full capacity, all scratch); `process`,
+//! `set_voicing` and `reset` never allocate.
+//!
+//! Voices: a strike on a key that is ringing adds to the same bank (linear superposition, seed
+//! 000 eq. 3); a new key takes a free voice, or steals the quietest one, which fades out over
+//! [`STEAL_FADE_SAMPLES`] in a spare voice. A voicing change re-tunes every ringing mode at the
+//! start of the next block, keeping its phase and amplitude: damping and E/rho/size act on notes
+//! already ringing, without a click; a hit position or mallet applies from the next strike (a
+//! strike that has happened cannot move). A new object is used from the next strike on; modes
+//! struck on the old one ring out unchanged, so a swap is seamless.
+//!
+//! Budget: at most `mode_budget` modes ring in all voices together. When a strike exceeds it,
+//! the quietest modes across all voices are dropped first; modes 100 dB below their voice's
+//! peak are dropped as they decay, and a voice with no mode left is freed.
+
+use super::object::SolvedObject;
+use super::voice::{SlotMode, Voice};
+use super::voicing::{tune, HitPoint, Voicing, VoicingError};
+use super::{EngineConfig, EngineStats, Event, TimedEvent};
+use crate::synth::excitation::MAX_HARDNESS_S;
+use crate::synth::{Excitation, SimdBackend};
+use rtrb::{Consumer, Producer};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Samples over which a stolen voice fades out.
+pub const STEAL_FADE_SAMPLES: usize = 64;
+
+/// Voices beyond the configured count, where new strikes play while stolen voices fade.
+const STEAL_SPARES: usize = 4;
+
+/// Modes whose amplitude falls this far below their voice's peak are dropped (-100 dB).
+const SILENCE_RATIO: f64 = 1e-5;
+
+/// A strike skips modes it excites less than this fraction of its loudest (-80 dB), as the
+/// offline culling does ([`crate::modes::CullSettings`]).
+const STRIKE_CULL_RATIO: f64 = 1e-4;
+
+/// Blocks between silence sweeps.
+const SWEEP_BLOCKS: u32 = 8;
+
+/// The audio thread's engine.
+pub struct AudioEngine {
+    sample_rate_hz: f64,
+    config: EngineConfig,
+    voicing: Voicing,
+    pending_voicing: bool,
+    object: Option<Box<SolvedObject>>,
+    incoming: Consumer<Box<SolvedObject>>,
+    retired: Producer<Box<SolvedObject>>,
+    voices: Vec<Voice>,
+    // Scratch, sized at start.
+    struck: Vec<SlotMode>,
+    gains: Vec<f64>,
+    all_amps: Vec<f64>,
+    render: Vec<f32>,
+    gain_now: f64,
+    blocks: u32,
+    stats: Arc<EngineStats>,
+    #[cfg(test)]
+    budget_split: (f64, f64),
+}
+
+impl AudioEngine {
+    pub(super) fn new(
+        sample_rate_hz: f64,
+        config: EngineConfig,
+        voicing: Voicing,
+        incoming: Consumer<Box<SolvedObject>>,
+        retired: Producer<Box<SolvedObject>>,
+        stats: Arc<EngineStats>,
+    ) -> Self {
+        let backend = SimdBackend::detect();
+        let voices = (0..config.voices + STEAL_SPARES)
+            .map(|_| Voice::new(config.modes_per_voice, sample_rate_hz, backend))
+            .collect::<Vec<_>>();
+        Self {
+            sample_rate_hz,
+            voicing,
+            pending_voicing: false,
+            object: None,
+            incoming,
+            retired,
+            struck: Vec::with_capacity(config.max_object_modes),
+            gains: vec![0.0; config.modes_per_voice],
+            all_amps: vec![0.0; (config.voices + STEAL_SPARES) * config.modes_per_voice],
+            render: vec![0.0; super::BLOCK_SAMPLES],
+            gain_now: voicing.output_gain,
+            blocks: 0,
+            #[cfg(test)]
+            budget_split: (0.0, 0.0),
+            voices,
+            config,
+            stats,
+        }
+    }
+
+    /// The sample rate the engine was started at.
+    pub fn sample_rate_hz(&self) -> f64 {
+        self.sample_rate_hz
+    }
+
+    /// The voicing in use (or about to be, at the next block).
+    pub fn voicing(&self) -> &Voicing {
+        &self.voicing
+    }
+
+    /// Sets the voicing; ringing modes follow at the start of the next block. An invalid voicing
+    /// is refused and the previous one kept. Never allocates.
+    pub fn set_voicing(&mut self, voicing: Voicing) -> Result<(), VoicingError> {
+        voicing.validate()?;
+        if voicing != self.voicing {
+            self.pending_voicing = true;
+            self.voicing = voicing;
+        }
+        Ok(())
+    }
+
+    /// The mode budget: most modes ringing in all voices together (at least 1).
+    pub fn set_mode_budget(&mut self, modes: usize) {
+        self.config.mode_budget = modes.max(1);
+    }
+
+    /// Modes ringing now.
+    pub fn active_modes(&self) -> usize {
+        self.voices.iter().map(|v| v.modes.len()).sum()
+    }
+
+    /// Whether a solved object has arrived.
+    pub fn has_object(&self) -> bool {
+        self.object.is_some()
+    }
+
+    /// Silences every voice (the object stays).
+    pub fn reset(&mut self) {
+        self.voices.iter_mut().for_each(Voice::release);
+    }
+
+    /// Renders `out.len()` samples (overwriting `out`), applying `events` (sorted by offset,
+    /// offsets within `out`) sample-accurately. Never allocates, frees, locks or blocks.
+    pub fn process(&mut self, out: &mut [f32], events: &[TimedEvent]) {
+        let started = Instant::now();
+        self.receive();
+        if std::mem::take(&mut self.pending_voicing) {
+            for v in self.voices.iter_mut().filter(|v| v.key.is_some()) {
+                v.revoice(&self.voicing);
+            }
+        }
+        out.fill(0.0);
+        let mut done = 0;
+        let mut next_event = 0;
+        while done < out.len() {
+            while next_event < events.len() && events[next_event].offset <= done {
+                self.apply_event(&events[next_event].event);
+                next_event += 1;
+            }
+            let until = events
+                .get(next_event)
+                .map_or(out.len(), |e| e.offset.min(out.len()));
+            let end = until
+                .max(done + 1)
+                .min(out.len())
+                .min(done + super::BLOCK_SAMPLES);
+            self.render_span(&mut out[done..end]);
+            done = end;
+        }
+        // Events at or past the end of the block still happen (at its last sample).
+        for e in &events[next_event..] {
+            self.apply_event(&e.event);
+        }
+        self.finish_block(out, started);
+    }
+
+    /// Takes newly solved objects while the retire ring has room for the one each replaces.
+    fn receive(&mut self) {
+        while self.retired.slots() > 0 {
+            let Ok(obj) = self.incoming.pop() else { break };
+            self.stats
+                .generation
+                .store(obj.generation, Ordering::Relaxed);
+            if let Some(old) = self.object.replace(obj) {
+                if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
+                    // Unreachable (a slot was free and only this thread fills it). Leaking is
+                    // the lesser evil: freeing here would break the audio thread's contract.
+                    std::mem::forget(old);
+                }
+            }
+        }
+    }
+
+    fn apply_event(&mut self, event: &Event) {
+        match *event {
+            Event::Strike {
+                key,
+                pitch,
+                velocity,
+                hit,
+                hardness_s,
+            } => self.strike(key, pitch, velocity, hit, hardness_s),
+            Event::Mute { key } => {
+                for v in self.voices.iter_mut().filter(|v| v.key == Some(key)) {
+                    v.muted = true;
+                    v.revoice(&self.voicing);
+                }
+            }
+            Event::AllOff => self.reset(),
+        }
+    }
+
+    fn strike(
+        &mut self,
+        key: u8,
+        pitch: f64,
+        velocity: f64,
+        hit: Option<HitPoint>,
+        hardness_s: Option<f64>,
+    ) {
+        let hardness = hardness_s.unwrap_or(self.voicing.hardness_s);
+        let ok = pitch.is_finite()
+            && pitch > 0.0
+            && velocity.is_finite()
+            && (0.0..=crate::synth::oscillator::MAX_VELOCITY).contains(&velocity)
+            && (0.0..=MAX_HARDNESS_S).contains(&hardness);
+        let excitation = if hardness > 0.0 {
+            Excitation::mallet(hardness)
+        } else {
+            Ok(Excitation::Impulse)
+        };
+        let hit = hit.unwrap_or(self.voicing.hit);
+        let forces_ready = self
+            .object
+            .as_mut()
+            .is_some_and(|o| o.update_forces(&hit).is_ok());
+        let (true, true, Ok(excitation)) = (ok, forces_ready, excitation) else {
+            self.stats.dropped_strikes.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
+        // The struck voice: the key's own at the same pitch; else a free one (a key re-pitched
+        // fades out like a stolen voice, so nothing clicks).
+        let same = |v: &Voice| v.key == Some(key) && v.fade_left == 0;
+        let v = match self.voices.iter().position(same) {
+            Some(v) if (self.voices[v].pitch - pitch).abs() <= 1e-12 * pitch => Some(v),
+            Some(v) => {
+                self.voices[v].fade_left = STEAL_FADE_SAMPLES;
+                self.take_voice()
+            }
+            None => self.take_voice(),
+        };
+        let (Some(v), Some(obj)) = (v, self.object.as_ref()) else {
+            self.stats.dropped_strikes.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
+        let voice = &mut self.voices[v];
+        if voice.key != Some(key) {
+            voice.release();
+            voice.key = Some(key);
+            voice.pitch = pitch;
+        }
+        voice.muted = false;
+        // The modes this strike excites, with their gains (seed 000 eq. 7).
+        let h = self.voicing.voxel_size_m(obj.extent, pitch);
+        let phi_scale = 1.0 / (self.voicing.density_kg_m3 * h * h * h).sqrt();
+        self.struck.clear();
+        let mut loudest: f64 = 0.0;
+        for (i, &lambda) in obj.basis.solution.eigenvalues.iter().enumerate() {
+            if self.struck.len() == self.struck.capacity() {
+                break;
+            }
+            let Some((f, d)) = tune(&self.voicing, lambda, h, 0.0, self.sample_rate_hz) else {
+                continue;
+            };
+            let gain = obj.forces[i] * phi_scale / (std::f64::consts::TAU * f);
+            let l = num_complex::Complex64::new(-d, std::f64::consts::TAU * f);
+            let level = (gain * velocity * excitation.modal_factor(l).norm()).abs();
+            if !level.is_finite() {
+                continue;
+            }
+            loudest = loudest.max(level);
+            self.struck.push(SlotMode {
+                generation: obj.generation,
+                index: i,
+                unit_eigenvalue: lambda * (obj.extent * obj.extent) as f64,
+                gain,
+                level,
+            });
+        }
+        // Drop what this strike barely excites; a voice too small keeps the loudest modes.
+        self.struck
+            .retain(|m| m.level > 0.0 && m.level >= STRIKE_CULL_RATIO * loudest);
+        if self.struck.len() > self.config.modes_per_voice {
+            self.struck
+                .sort_unstable_by(|a, b| b.level.total_cmp(&a.level));
+            self.struck.truncate(self.config.modes_per_voice);
+            self.struck.sort_unstable_by_key(|m| m.index);
+        }
+        self.voices[v].strike(
+            &self.struck,
+            &self.voicing,
+            excitation,
+            velocity,
+            &mut self.gains,
+        );
+        self.enforce_budget();
+    }
+
+    /// A free voice; when `voices` keys already play, the quietest is stolen (it fades out in
+    /// place while a spare plays). `None` only if every spare is busy fading.
+    fn take_voice(&mut self) -> Option<usize> {
+        let playing = self
+            .voices
+            .iter()
+            .filter(|v| v.key.is_some() && v.fade_left == 0)
+            .count();
+        if playing >= self.config.voices {
+            let quietest = self
+                .voices
+                .iter_mut()
+                .enumerate()
+                .filter(|(_, v)| v.key.is_some() && v.fade_left == 0)
+                .map(|(i, v)| {
+                    v.measure();
+                    let loud = v.amps[..v.modes.len()].iter().cloned().fold(0.0, f64::max);
+                    (i, loud)
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1))?
+                .0;
+            // The stolen voice fades out in place; it takes no more strikes.
+            self.voices[quietest].fade_left = STEAL_FADE_SAMPLES;
+        }
+        self.voices.iter().position(|v| v.key.is_none())
+    }
+
+    /// Drops the quietest modes across all voices until at most `mode_budget` ring.
+    fn enforce_budget(&mut self) {
+        let budget = self.config.mode_budget;
+        let total = self.active_modes();
+        if total <= budget {
+            return;
+        }
+        let mut n = 0;
+        for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
+            v.measure();
+            let m = v.modes.len();
+            self.all_amps[n..n + m].copy_from_slice(&v.amps[..m]);
+            n += m;
+        }
+        // The budget-th loudest amplitude is the threshold (ties may keep a few more).
+        let (_, threshold, _) =
+            self.all_amps[..n].select_nth_unstable_by(total - budget, |a, b| a.total_cmp(b));
+        let threshold = *threshold;
+        #[cfg(test)]
+        {
+            let kept = self.all_amps[..n].iter().filter(|&&a| a >= threshold);
+            let gone = self.all_amps[..n].iter().filter(|&&a| a < threshold);
+            self.budget_split = (
+                kept.cloned().fold(f64::INFINITY, f64::min),
+                gone.cloned().fold(0.0, f64::max),
+            );
+        }
+        let mut dropped = 0;
+        for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
+            dropped += v.drop_below(threshold);
+            if v.modes.is_empty() {
+                v.release();
+            }
+        }
+        self.stats
+            .dropped_modes
+            .fetch_add(dropped as u64, Ordering::Relaxed);
+    }
+
+    /// Renders every voice into `out` (at most one block).
+    fn render_span(&mut self, out: &mut [f32]) {
+        let n = out.len();
+        let tmp = &mut self.render[..n];
+        for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
+            v.bank.render(tmp);
+            if v.fade_left > 0 {
+                for (o, &x) in out.iter_mut().zip(tmp.iter()) {
+                    let g = v.fade_left as f32 / STEAL_FADE_SAMPLES as f32;
+                    *o += g * x;
+                    v.fade_left = v.fade_left.saturating_sub(1);
+                }
+                if v.fade_left == 0 {
+                    v.release();
+                }
+            } else {
+                for (o, &x) in out.iter_mut().zip(tmp.iter()) {
+                    *o += x;
+                }
+            }
+        }
+    }
+
+    /// Output gain (ramped over the block), silence sweep, statistics.
+    fn finish_block(&mut self, out: &mut [f32], started: Instant) {
+        let target = self.voicing.output_gain;
+        let n = out.len().max(1) as f64;
+        for (k, o) in out.iter_mut().enumerate() {
+            let g = self.gain_now + (target - self.gain_now) * (k + 1) as f64 / n;
+            *o = (*o as f64 * g) as f32;
+            if !o.is_finite() {
+                *o = 0.0;
+            }
+        }
+        self.gain_now = target;
+        self.blocks = self.blocks.wrapping_add(1);
+        if self.blocks.is_multiple_of(SWEEP_BLOCKS) {
+            for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
+                v.measure();
+                v.drop_below(SILENCE_RATIO * v.peak);
+                if v.modes.is_empty() {
+                    v.release();
+                }
+            }
+        }
+        let s = &self.stats;
+        s.active_modes
+            .store(self.active_modes() as u64, Ordering::Relaxed);
+        s.active_voices.store(
+            self.voices.iter().filter(|v| !v.modes.is_empty()).count() as u64,
+            Ordering::Relaxed,
+        );
+        let busy = started.elapsed().as_secs_f64();
+        let span = out.len() as f64 / self.sample_rate_hz;
+        if span > 0.0 {
+            // Exponential average over ~16 blocks.
+            let old = f64::from_bits(s.load_bits.load(Ordering::Relaxed));
+            let load = old + (busy / span - old) / 16.0;
+            s.load_bits.store(load.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    /// Test access: (frequency, decay) of every mode of the voice playing `key`.
+    #[cfg(test)]
+    pub(super) fn voice_tunings(&self, key: u8) -> Vec<(f64, f64)> {
+        self.voices
+            .iter()
+            .find(|v| v.key == Some(key) && v.fade_left == 0)
+            .map(|v| (0..v.modes.len()).map(|j| v.bank.tuning(j)).collect())
+            .unwrap_or_default()
+    }
+
+    /// Test access: voices ringing.
+    #[cfg(test)]
+    pub(super) fn stats_voices(&self) -> usize {
+        self.voices.iter().filter(|v| !v.modes.is_empty()).count()
+    }
+
+    /// Test access: grid extent of the object in use.
+    #[cfg(test)]
+    pub(super) fn object_extent(&self) -> Option<usize> {
+        self.object.as_ref().map(|o| o.extent)
+    }
+
+    /// Test access: the quietest kept and the loudest dropped amplitude of the last budget cut.
+    #[cfg(test)]
+    pub(super) fn last_budget_split(&self) -> (f64, f64) {
+        self.budget_split
+    }
+}

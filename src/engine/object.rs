@@ -1,0 +1,68 @@
+//! A solved object as the audio side holds it: the [`ModeBasis`] plus the scratch a strike
+//! needs, allocated by the worker so that the audio thread never allocates.
+//!
+//! Where it sits: built by [`super::worker`], moved to [`super::audio::AudioEngine`] through an
+//! `rtrb` ring (a pointer move), and moved back through the retire ring when replaced, to be
+//! freed on the worker.
+
+use super::voicing::HitPoint;
+use crate::modal::{Hit, HitError, ModeBasis};
+
+/// A shape's modes ready to be struck.
+pub struct SolvedObject {
+    /// The solved shape (reference units).
+    pub basis: ModeBasis,
+    /// Increases with every solved edit; modes keep it so a voice knows which object they are.
+    pub generation: u64,
+    /// Name of the solver that produced it.
+    pub solver: &'static str,
+    /// Time the solve took, ms.
+    pub solve_ms: f64,
+    /// The grid's longest side in voxels (the size parameter spans it).
+    pub extent: usize,
+    /// Reference-unit modal forces at `forces_hit`, one per mode.
+    pub(crate) forces: Vec<f64>,
+    forces_hit: Option<HitPoint>,
+}
+
+impl SolvedObject {
+    /// Wraps a solved basis. Allocates.
+    pub fn new(basis: ModeBasis, generation: u64, solver: &'static str, solve_ms: f64) -> Self {
+        let modes = basis.mode_count();
+        let extent = basis.grid_dims().into_iter().max().unwrap_or(1);
+        Self {
+            basis,
+            generation,
+            solver,
+            solve_ms,
+            extent,
+            forces: vec![0.0; modes],
+            forces_hit: None,
+        }
+    }
+
+    /// Modes computed.
+    pub fn mode_count(&self) -> usize {
+        self.forces.len()
+    }
+
+    /// Makes `forces` hold the modal forces for `hit` (cached: recomputed when the hit moves).
+    /// Never allocates.
+    pub fn update_forces(&mut self, hit: &HitPoint) -> Result<(), HitError> {
+        if self.forces_hit.as_ref() == Some(hit) {
+            return Ok(());
+        }
+        // Reference units: voxel edge 1, so the point is the fraction times the grid's extent.
+        let dims = self.basis.grid_dims();
+        let point_m = [0, 1, 2].map(|a| hit.position[a] * dims[a] as f64);
+        let h = Hit {
+            point_m,
+            direction: hit.direction,
+        };
+        self.forces_hit = None;
+        self.basis
+            .reference_forces_into(&h, 1.0, &mut self.forces)?;
+        self.forces_hit = Some(*hit);
+        Ok(())
+    }
+}

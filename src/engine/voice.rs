@@ -1,0 +1,219 @@
+//! One voice: an oscillator bank that many strikes of the same key ring on (linear
+//! superposition), with the reference eigenvalue of every mode it plays.
+//!
+//! Where it sits: owned by [`super::audio::AudioEngine`] in a fixed pool. A voice keeps, per bank
+//! mode, which solved object (`generation`) and which of its modes it is, and that mode's
+//! reference eigenvalue, so it can be re-voiced (damping, E, size) while ringing, and keeps
+//! ringing after the object it was struck on has been replaced. Lifecycle: [`Voice::new`]
+//! allocates; every other method never allocates (scratch is sized to the capacity).
+
+use super::voicing::{tune, Voicing};
+use crate::synth::{Excitation, OscillatorBank, SimdBackend, Tuning};
+
+/// A bank mode's identity and reference eigenvalue.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SlotMode {
+    /// The solved object it came from.
+    pub generation: u64,
+    /// Its index in that object's modes.
+    pub index: usize,
+    /// Its eigenvalue scaled to an object one voxel long (`lambda_ref extent^2`), so that the
+    /// voicing's size alone sets its frequency, whatever grid it was solved on.
+    pub unit_eigenvalue: f64,
+    /// The gain of its last strike (per unit velocity), kept for re-tuning.
+    pub gain: f64,
+    /// Amplitude the strike that added it gave it (for the budget's "loudest first").
+    pub level: f64,
+}
+
+/// One key's ringing modes.
+pub(crate) struct Voice {
+    pub bank: OscillatorBank,
+    /// The key it plays; `None` when free.
+    pub key: Option<u8>,
+    /// Frequency ratio against the object's own size (the "pitch" key mapping).
+    pub pitch: f64,
+    /// Note-off with mute: the voicing's mute decay is added.
+    pub muted: bool,
+    /// Samples left of a steal fade-out (0: not fading).
+    pub fade_left: usize,
+    /// Largest mode amplitude right after its last strike (for the silence test).
+    pub peak: f64,
+    pub modes: Vec<SlotMode>,
+    next_modes: Vec<SlotMode>,
+    tunings: Vec<Tuning>,
+    pub amps: Vec<f64>,
+}
+
+impl Voice {
+    /// A free voice for up to `capacity` modes. Allocates.
+    pub fn new(capacity: usize, sample_rate_hz: f64, backend: SimdBackend) -> Self {
+        Self {
+            bank: OscillatorBank::with_capacity(capacity, sample_rate_hz, backend),
+            key: None,
+            pitch: 1.0,
+            muted: false,
+            fade_left: 0,
+            peak: 0.0,
+            modes: Vec::with_capacity(capacity),
+            next_modes: Vec::with_capacity(capacity),
+            tunings: Vec::with_capacity(capacity),
+            amps: vec![0.0; capacity],
+        }
+    }
+
+    pub fn capacity(&self) -> usize {
+        self.bank.capacity()
+    }
+
+    /// Frees the voice and silences its bank.
+    pub fn release(&mut self) {
+        self.key = None;
+        self.muted = false;
+        self.fade_left = 0;
+        self.peak = 0.0;
+        self.modes.clear();
+        self.tunings.clear();
+        // Cannot fail: no modes.
+        let _ = self.bank.retune(&[]);
+    }
+
+    /// Re-tunes every ringing mode for `voicing` (kept phase and amplitude); modes that can no
+    /// longer ring (above Nyquist, overdamped) are dropped.
+    pub fn revoice(&mut self, voicing: &Voicing) {
+        let h = voicing.voxel_size_m(1, self.pitch);
+        let extra = if self.muted {
+            voicing.mute_decay_per_s
+        } else {
+            0.0
+        };
+        let fs = self.bank.sample_rate_hz();
+        self.next_modes.clear();
+        self.tunings.clear();
+        for (j, m) in self.modes.iter().enumerate() {
+            if let Some((freq_hz, decay_per_s)) = tune(voicing, m.unit_eigenvalue, h, extra, fs) {
+                self.next_modes.push(*m);
+                self.tunings.push(Tuning {
+                    freq_hz,
+                    decay_per_s,
+                    gain: m.gain,
+                    from: Some(j),
+                });
+            }
+        }
+        self.apply();
+    }
+
+    /// Keeps only the modes whose current amplitude is at least `threshold` (in `amps`, filled
+    /// by [`Self::measure`]). Returns how many were dropped.
+    pub fn drop_below(&mut self, threshold: f64) -> usize {
+        let before = self.modes.len();
+        if self.amps[..before].iter().all(|&a| a >= threshold) {
+            return 0;
+        }
+        self.next_modes.clear();
+        self.tunings.clear();
+        let fs = self.bank.sample_rate_hz();
+        for j in 0..before {
+            if self.amps[j] >= threshold {
+                self.next_modes.push(self.modes[j]);
+                let (f, d) = self.bank.tuning(j);
+                self.tunings.push(Tuning {
+                    freq_hz: f.min(0.5 * fs),
+                    decay_per_s: d,
+                    gain: self.modes[j].gain,
+                    from: Some(j),
+                });
+            }
+        }
+        self.apply();
+        before - self.modes.len()
+    }
+
+    /// Current amplitude of every mode into `amps`.
+    pub fn measure(&mut self) {
+        let n = self.modes.len();
+        self.bank.amplitudes(&mut self.amps[..n]);
+    }
+
+    /// Strikes: `struck` lists the struck object's modes worth playing (in its mode order); ringing modes carry on, new ones join, up to capacity.
+    /// `gains` receives the per-mode gains in the new bank order (scratch owned by the caller).
+    pub fn strike(
+        &mut self,
+        struck: &[SlotMode],
+        voicing: &Voicing,
+        excitation: Excitation,
+        velocity: f64,
+        gains: &mut [f64],
+    ) {
+        let h = voicing.voxel_size_m(1, self.pitch);
+        let fs = self.bank.sample_rate_hz();
+        self.next_modes.clear();
+        self.tunings.clear();
+        // Ringing modes first (they keep their slots' phase), then the struck ones not ringing.
+        for (j, m) in self.modes.iter().enumerate() {
+            let again = struck
+                .iter()
+                .find(|s| s.generation == m.generation && s.index == m.index);
+            let (f, d) = self.bank.tuning(j);
+            let gain = again.map_or(0.0, |s| s.gain);
+            self.next_modes.push(SlotMode {
+                gain: if again.is_some() { gain } else { m.gain },
+                ..*m
+            });
+            self.tunings.push(Tuning {
+                freq_hz: f,
+                decay_per_s: d,
+                gain,
+                from: Some(j),
+            });
+        }
+        let extra = if self.muted {
+            voicing.mute_decay_per_s
+        } else {
+            0.0
+        };
+        for s in struck {
+            if self.next_modes.len() == self.capacity() {
+                break;
+            }
+            let ringing = self
+                .modes
+                .iter()
+                .any(|m| m.generation == s.generation && m.index == s.index);
+            if ringing {
+                continue;
+            }
+            if let Some((freq_hz, decay_per_s)) = tune(voicing, s.unit_eigenvalue, h, extra, fs) {
+                self.next_modes.push(*s);
+                self.tunings.push(Tuning {
+                    freq_hz,
+                    decay_per_s,
+                    gain: s.gain,
+                    from: None,
+                });
+            }
+        }
+        self.apply();
+        let n = self.modes.len();
+        for (g, t) in gains[..n].iter_mut().zip(&self.tunings) {
+            *g = t.gain;
+        }
+        // Validated by the engine (velocity, hardness, finite gains): cannot fail.
+        let _ = self
+            .bank
+            .strike_with_gains(excitation, velocity, &gains[..n]);
+        self.measure();
+        self.peak = self.amps[..n].iter().cloned().fold(0.0, f64::max);
+    }
+
+    /// Installs `next_modes`/`tunings` in the bank.
+    fn apply(&mut self) {
+        match self.bank.retune(&self.tunings) {
+            Ok(()) => std::mem::swap(&mut self.modes, &mut self.next_modes),
+            // Only reachable through a bug (every tuning comes from `tune`): fall silent
+            // rather than play something inconsistent.
+            Err(_) => self.release(),
+        }
+    }
+}

@@ -1,0 +1,305 @@
+//! The engine's worker thread: solves shape edits off the audio thread and hands the results
+//! over through a lock-free ring.
+//!
+//! Where it sits: between the editor/CLI (which send [`ObjectRequest`]s through
+//! [`EngineControl::request`]) and [`super::audio::AudioEngine`] (which pops solved objects
+//! from an `rtrb` ring and pushes the replaced ones back through a second ring, freed here).
+//! Requests that arrive during a solve coalesce: only the newest waiting one is solved next.
+//! Solvers form a chain ([`ModeSolver`]): a fast approximate one (the neural predictor, later)
+//! answers first and the exact FEM solve replaces it, unless a newer request has arrived.
+//! Nice-plug's own background executor is deliberately not used (it can abort a host on
+//! unload; `../shared/notes/plugin.md`).
+
+use super::object::SolvedObject;
+use super::EngineStats;
+use crate::eigen::{EigenOptions, SolverKind};
+use crate::fem::ElementKind;
+use crate::modal::{ModalError, ModeBasis};
+use crate::shape::VoxelGrid;
+use rtrb::{Consumer, Producer, PushError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// How often an idle worker wakes to free retired objects and retry a delivery.
+const POLL: Duration = Duration::from_millis(20);
+
+/// A shape edit to solve: everything the expensive solve depends on.
+#[derive(Clone, Debug)]
+pub struct ObjectRequest {
+    /// The voxel object.
+    pub grid: VoxelGrid,
+    /// Element type.
+    pub element: ElementKind,
+    /// Poisson's ratio (the one material constant the modes depend on).
+    pub poisson_ratio: f64,
+    /// Eigensolver.
+    pub solver: SolverKind,
+    /// Mode count and tolerance, in reference units.
+    pub options: EigenOptions,
+}
+
+/// Something that turns a shape into modes. The worker runs its solvers in order for every
+/// request and hands each result to the audio side as it arrives.
+pub trait ModeSolver: Send {
+    /// Short name for the status line ("fem", "neural").
+    fn name(&self) -> &'static str;
+    /// Solves the request.
+    fn solve(&mut self, request: &ObjectRequest) -> Result<ModeBasis, ModalError>;
+}
+
+/// The finite-element modal analysis ([`ModeBasis::solve`]): exact, the reference.
+pub struct FemSolver;
+
+impl ModeSolver for FemSolver {
+    fn name(&self) -> &'static str {
+        "fem"
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+        ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)
+    }
+}
+
+/// What the worker is doing.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SolveState {
+    /// Nothing to do.
+    Idle,
+    /// Solving with the named solver since the given instant.
+    Solving {
+        /// Solver name.
+        solver: &'static str,
+        /// When it started.
+        since: Instant,
+    },
+}
+
+/// The outcome of the last solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveReport {
+    /// Solver name.
+    pub solver: &'static str,
+    /// Generation of the object it produced (0 on error).
+    pub generation: u64,
+    /// Wall time, ms.
+    pub ms: f64,
+    /// Modes found.
+    pub modes: usize,
+    /// The error, one line, if it failed (the previous object keeps playing).
+    pub error: Option<String>,
+}
+
+/// The worker's state for the editor's status line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorkerStatus {
+    /// What it is doing.
+    pub state: SolveState,
+    /// The last finished solve.
+    pub last: Option<SolveReport>,
+    /// Requests solved (each solver run counts once).
+    pub solves: u64,
+}
+
+struct Mailbox {
+    request: Option<ObjectRequest>,
+    shutdown: bool,
+}
+
+struct Shared {
+    mailbox: Mutex<Mailbox>,
+    wake: Condvar,
+    status: Mutex<WorkerStatus>,
+}
+
+/// Locks, recovering from a poisoned lock (a panicking solver must not wedge the editor).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The control side of the engine (editor, CLI): sends requests, reads status and statistics.
+/// Dropping it stops the worker.
+pub struct EngineControl {
+    shared: Arc<Shared>,
+    stats: Arc<EngineStats>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl EngineControl {
+    pub(super) fn spawn(
+        solvers: Vec<Box<dyn ModeSolver>>,
+        to_audio: Producer<Box<SolvedObject>>,
+        retired: Consumer<Box<SolvedObject>>,
+        stats: Arc<EngineStats>,
+    ) -> std::io::Result<Self> {
+        let shared = Arc::new(Shared {
+            mailbox: Mutex::new(Mailbox {
+                request: None,
+                shutdown: false,
+            }),
+            wake: Condvar::new(),
+            status: Mutex::new(WorkerStatus {
+                state: SolveState::Idle,
+                last: None,
+                solves: 0,
+            }),
+        });
+        let worker = Worker {
+            shared: shared.clone(),
+            solvers,
+            to_audio,
+            retired,
+            pending: None,
+            generation: 0,
+        };
+        let thread = std::thread::Builder::new()
+            .name("modalforge-worker".into())
+            .spawn(move || worker.run())?;
+        Ok(Self {
+            shared,
+            stats,
+            thread: Some(thread),
+        })
+    }
+
+    /// Queues a shape to solve; a request still waiting is replaced (coalescing).
+    pub fn request(&self, request: ObjectRequest) {
+        lock(&self.shared.mailbox).request = Some(request);
+        self.shared.wake.notify_one();
+    }
+
+    /// The worker's status.
+    pub fn status(&self) -> WorkerStatus {
+        lock(&self.shared.status).clone()
+    }
+
+    /// The audio side's statistics.
+    pub fn stats(&self) -> &EngineStats {
+        &self.stats
+    }
+
+    /// Waits until no request is waiting and no solve is running, at most `timeout`; true if
+    /// it got there.
+    pub fn wait_idle(&self, timeout: Duration) -> bool {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            let waiting = lock(&self.shared.mailbox).request.is_some();
+            if !waiting && lock(&self.shared.status).state == SolveState::Idle {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        false
+    }
+}
+
+impl Drop for EngineControl {
+    fn drop(&mut self) {
+        lock(&self.shared.mailbox).shutdown = true;
+        self.shared.wake.notify_one();
+        if let Some(t) = self.thread.take() {
+            // A solve in progress finishes first (solvers are not interruptible).
+            let _ = t.join();
+        }
+    }
+}
+
+struct Worker {
+    shared: Arc<Shared>,
+    solvers: Vec<Box<dyn ModeSolver>>,
+    to_audio: Producer<Box<SolvedObject>>,
+    retired: Consumer<Box<SolvedObject>>,
+    /// A solved object the full ring could not take yet (a newer one replaces it).
+    pending: Option<Box<SolvedObject>>,
+    generation: u64,
+}
+
+impl Worker {
+    fn run(mut self) {
+        loop {
+            self.housekeeping();
+            let request = {
+                let mut mb = lock(&self.shared.mailbox);
+                if mb.shutdown {
+                    return;
+                }
+                if mb.request.is_none() {
+                    mb = self
+                        .shared
+                        .wake
+                        .wait_timeout(mb, POLL)
+                        .map(|(g, _)| g)
+                        .unwrap_or_else(|e| e.into_inner().0);
+                }
+                if mb.shutdown {
+                    return;
+                }
+                mb.request.take()
+            };
+            if let Some(request) = request {
+                self.solve(&request);
+            }
+        }
+    }
+
+    /// Frees retired objects; retries a delivery the ring refused.
+    fn housekeeping(&mut self) {
+        while let Ok(old) = self.retired.pop() {
+            drop(old);
+        }
+        if let Some(obj) = self.pending.take() {
+            if let Err(PushError::Full(obj)) = self.to_audio.push(obj) {
+                self.pending = Some(obj);
+            }
+        }
+    }
+
+    fn solve(&mut self, request: &ObjectRequest) {
+        for i in 0..self.solvers.len() {
+            if i > 0 && lock(&self.shared.mailbox).request.is_some() {
+                // A newer edit is waiting: the slower solvers would answer an old question.
+                break;
+            }
+            let name = self.solvers[i].name();
+            let since = Instant::now();
+            lock(&self.shared.status).state = SolveState::Solving {
+                solver: name,
+                since,
+            };
+            let result = self.solvers[i].solve(request);
+            let ms = since.elapsed().as_secs_f64() * 1e3;
+            let report = match result {
+                Ok(basis) => {
+                    self.generation += 1;
+                    let modes = basis.mode_count();
+                    // Replaces (frees, here) an older object still waiting for the audio side.
+                    self.pending = Some(Box::new(SolvedObject::new(
+                        basis,
+                        self.generation,
+                        name,
+                        ms,
+                    )));
+                    self.housekeeping();
+                    SolveReport {
+                        solver: name,
+                        generation: self.generation,
+                        ms,
+                        modes,
+                        error: None,
+                    }
+                }
+                Err(e) => SolveReport {
+                    solver: name,
+                    generation: 0,
+                    ms,
+                    modes: 0,
+                    error: Some(e.to_string()),
+                },
+            };
+            let mut st = lock(&self.shared.status);
+            st.last = Some(report);
+            st.solves += 1;
+        }
+        lock(&self.shared.status).state = SolveState::Idle;
+    }
+}

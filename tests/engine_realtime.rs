@@ -1,0 +1,163 @@
+//! The engine's audio side never allocates or frees (issue #4's wait-free contract), checked
+//! with a global allocator that counts calls made on the audio thread, while an editor thread
+//! sends shape edits that the worker solves and swaps in.
+
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::engine::{
+    DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, TimedEvent,
+    Voicing,
+};
+use modalforge::fem::ElementKind;
+use modalforge::material::Material;
+use modalforge::shape::VoxelGrid;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+struct Counting;
+static AUDIO_ALLOCS: AtomicUsize = AtomicUsize::new(0);
+static AUDIO_FREES: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    // Const-initialised: reading it never allocates.
+    static ON_AUDIO: Cell<bool> = const { Cell::new(false) };
+}
+
+fn on_audio() -> bool {
+    ON_AUDIO.try_with(|c| c.get()).unwrap_or(false)
+}
+
+// SAFETY: forwards to the system allocator unchanged; only counts calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if on_audio() {
+            AUDIO_ALLOCS.fetch_add(1, Ordering::SeqCst);
+        }
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if on_audio() {
+            AUDIO_FREES.fetch_add(1, Ordering::SeqCst);
+        }
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        if on_audio() {
+            AUDIO_ALLOCS.fetch_add(1, Ordering::SeqCst);
+        }
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn request(len: usize) -> ObjectRequest {
+    ObjectRequest {
+        grid: VoxelGrid::from_fn([len, 4, 3], 0.01, |_, _, _| true).unwrap(),
+        element: ElementKind::Hex8Incompatible,
+        poisson_ratio: Material::preset("steel").unwrap().poisson_ratio,
+        solver: SolverKind::Lanczos,
+        options: EigenOptions {
+            count: ModeCount::First(40),
+            ..EigenOptions::default()
+        },
+    }
+}
+
+#[test]
+fn the_audio_thread_never_allocates_while_objects_are_edited() {
+    let voicing = Voicing::from_material(&Material::preset("steel").unwrap(), 0.2).unwrap();
+    let config = EngineConfig {
+        voices: 4,
+        mode_budget: 60,
+        ..EngineConfig::default()
+    };
+    let (mut audio, control) =
+        Engine::start(48000.0, config, voicing, vec![Box::new(FemSolver)]).unwrap();
+    control.request(request(12));
+    // Preparation may allocate; from here on the test thread is the audio thread.
+    let mut out = vec![0f32; 512];
+    let mut events = Vec::with_capacity(8);
+    let started = Instant::now();
+    let mut edits = 0;
+    let mut swaps_heard = 0;
+    let mut last_generation = 0;
+    let mut block = 0u64;
+    let mut loudest = 0f32;
+    while (swaps_heard < 4 || block < 3000) && started.elapsed() < Duration::from_secs(120) {
+        block += 1;
+        // The editor: a new shape every ~40 blocks once the previous one is in.
+        let generation = control.stats().generation.load(Ordering::Relaxed);
+        if generation != last_generation {
+            swaps_heard += 1;
+            last_generation = generation;
+        }
+        if block.is_multiple_of(40)
+            && control.status().state == modalforge::engine::SolveState::Idle
+        {
+            edits += 1;
+            control.request(request(12 + edits % 7));
+        }
+        events.clear();
+        let key = (block % 7) as u8;
+        if block.is_multiple_of(3) {
+            events.push(TimedEvent {
+                offset: (block % 61) as usize,
+                event: Event::Strike {
+                    key,
+                    pitch: 1.0 + 0.1 * key as f64,
+                    velocity: 0.8,
+                    hit: Some(HitPoint {
+                        position: [(block % 10) as f64 / 10.0, 0.5, 1.0],
+                        direction: None,
+                    }),
+                    hardness_s: Some(5e-4),
+                },
+            });
+        }
+        if block.is_multiple_of(5) {
+            events.push(TimedEvent {
+                offset: 100,
+                event: Event::Mute { key },
+            });
+        }
+        let len = [64, 128, 37, 512][(block % 4) as usize];
+        let mut v = voicing;
+        v.size_m = 0.2 + 0.01 * (block % 9) as f64;
+        v.damping = DampingParams::Rayleigh {
+            alpha1: 1.0 + (block % 4) as f64,
+            alpha2: 1e-8,
+        };
+        v.hit.position[0] = (block % 11) as f64 / 11.0;
+
+        ON_AUDIO.with(|c| c.set(true));
+        audio.set_voicing(v).unwrap();
+        audio.set_mode_budget(40 + (block % 50) as usize);
+        audio.process(&mut out[..len], &events);
+        ON_AUDIO.with(|c| c.set(false));
+
+        assert!(out[..len].iter().all(|x| x.is_finite()));
+        loudest = out[..len].iter().fold(loudest, |m, x| m.max(x.abs()));
+        if block.is_multiple_of(8) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    assert!(swaps_heard >= 4, "only {swaps_heard} objects arrived");
+    assert!(loudest > 0.0, "nothing was heard");
+    assert_eq!(
+        AUDIO_ALLOCS.load(Ordering::SeqCst),
+        0,
+        "allocations on the audio thread"
+    );
+    assert_eq!(
+        AUDIO_FREES.load(Ordering::SeqCst),
+        0,
+        "frees on the audio thread"
+    );
+    assert!(control.stats().active_modes.load(Ordering::Relaxed) <= 90);
+}
