@@ -9,7 +9,7 @@
 
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    Engine, EngineConfig, Event, FemSolver, ObjectRequest, TimedEvent, Voicing,
+    Engine, EngineConfig, Event, FemSolver, ObjectRequest, Pitch, TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -54,7 +54,7 @@ fn main() {
                 offset: 0,
                 event: Event::Strike {
                     key: k as u8,
-                    pitch: 2f64.powf(k as f64 / 64.0 - 0.5),
+                    pitch: Pitch::Ratio(2f64.powf(k as f64 / 64.0 - 0.5)),
                     velocity: 1.0,
                     hit: None,
                     hardness_s: None,

@@ -29,7 +29,8 @@ pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::SolvedObject;
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{
-    EngineControl, FemSolver, ModeSolver, ObjectRequest, SolveReport, SolveState, WorkerStatus,
+    EngineControl, FemSolver, ModeSolver, ObjectRequest, RequestSource, SolveReport, SolveState,
+    WorkerStatus,
 };
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -93,9 +94,8 @@ pub enum Event {
     Strike {
         /// The key (a MIDI note, or any id).
         key: u8,
-        /// Frequency ratio to the object's own size (1 = as sculpted; the "pitch" mapping
-        /// scales the object by `1 / pitch`).
-        pitch: f64,
+        /// How high the object sounds: it is scaled by `1 / ratio`.
+        pitch: Pitch,
         /// Force multiplier, `0..=100` (1 = the modes' own gains).
         velocity: f64,
         /// Hit point; `None` uses the voicing's.
@@ -110,6 +110,17 @@ pub enum Event {
     },
     /// Silence everything.
     AllOff,
+}
+
+/// The size a strike plays the object at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Pitch {
+    /// Frequency ratio to the object's own size (1 = as sculpted).
+    Ratio(f64),
+    /// Scale the object so that its fundamental (lowest playable mode under the current
+    /// voicing) is this frequency, Hz: the "pitch" key mapping. Resolved at the strike, with
+    /// the object in use then.
+    Fundamental(f64),
 }
 
 /// An event at a sample offset within the block.

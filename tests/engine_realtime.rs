@@ -4,8 +4,8 @@
 
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, TimedEvent,
-    Voicing,
+    DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, Pitch,
+    TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -110,7 +110,7 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
                 offset: (block % 61) as usize,
                 event: Event::Strike {
                     key,
-                    pitch: 1.0 + 0.1 * key as f64,
+                    pitch: Pitch::Ratio(1.0 + 0.1 * key as f64),
                     velocity: 0.8,
                     hit: Some(HitPoint {
                         position: [(block % 10) as f64 / 10.0, 0.5, 1.0],

@@ -22,7 +22,7 @@
 use super::object::SolvedObject;
 use super::voice::{SlotMode, Voice};
 use super::voicing::{tune, HitPoint, Voicing, VoicingError};
-use super::{EngineConfig, EngineStats, Event, TimedEvent};
+use super::{EngineConfig, EngineStats, Event, Pitch, TimedEvent};
 use crate::synth::excitation::MAX_HARDNESS_S;
 use crate::synth::{Excitation, SimdBackend};
 use rtrb::{Consumer, Producer};
@@ -62,6 +62,8 @@ pub struct AudioEngine {
     all_amps: Vec<f64>,
     render: Vec<f32>,
     gain_now: f64,
+    /// Level normalisation factor (1 when off).
+    level_scale: f64,
     blocks: u32,
     stats: Arc<EngineStats>,
     #[cfg(test)]
@@ -93,6 +95,7 @@ impl AudioEngine {
             all_amps: vec![0.0; (config.voices + STEAL_SPARES) * config.modes_per_voice],
             render: vec![0.0; super::BLOCK_SAMPLES],
             gain_now: voicing.output_gain,
+            level_scale: 1.0,
             blocks: 0,
             #[cfg(test)]
             budget_split: (0.0, 0.0),
@@ -128,6 +131,19 @@ impl AudioEngine {
         self.config.mode_budget = modes.max(1);
     }
 
+    /// The object's lowest playable frequency at its own size under the current voicing, Hz
+    /// (the reference of the "pitch" key mapping). Never allocates.
+    pub fn fundamental_hz(&self) -> Option<f64> {
+        let obj = self.object.as_ref()?;
+        let h = self.voicing.voxel_size_m(obj.extent, 1.0);
+        obj.basis
+            .solution
+            .eigenvalues
+            .iter()
+            .find_map(|&l| tune(&self.voicing, l, h, 0.0, self.sample_rate_hz))
+            .map(|(f, _)| f)
+    }
+
     /// Modes ringing now.
     pub fn active_modes(&self) -> usize {
         self.voices.iter().map(|v| v.modes.len()).sum()
@@ -147,11 +163,15 @@ impl AudioEngine {
     /// offsets within `out`) sample-accurately. Never allocates, frees, locks or blocks.
     pub fn process(&mut self, out: &mut [f32], events: &[TimedEvent]) {
         let started = Instant::now();
-        self.receive();
-        if std::mem::take(&mut self.pending_voicing) {
+        let arrived = self.receive();
+        let revoiced = std::mem::take(&mut self.pending_voicing);
+        if revoiced {
             for v in self.voices.iter_mut().filter(|v| v.key.is_some()) {
                 v.revoice(&self.voicing);
             }
+        }
+        if arrived || revoiced {
+            self.update_level_reference();
         }
         out.fill(0.0);
         let mut done = 0;
@@ -178,13 +198,16 @@ impl AudioEngine {
         self.finish_block(out, started);
     }
 
-    /// Takes newly solved objects while the retire ring has room for the one each replaces.
-    fn receive(&mut self) {
+    /// Takes newly solved objects while the retire ring has room for the one each replaces;
+    /// true if one arrived.
+    fn receive(&mut self) -> bool {
+        let mut arrived = false;
         while self.retired.slots() > 0 {
             let Ok(obj) = self.incoming.pop() else { break };
             self.stats
                 .generation
                 .store(obj.generation, Ordering::Relaxed);
+            arrived = true;
             if let Some(old) = self.object.replace(obj) {
                 if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
                     // Unreachable (a slot was free and only this thread fills it). Leaking is
@@ -192,6 +215,38 @@ impl AudioEngine {
                     std::mem::forget(old);
                 }
             }
+        }
+        arrived
+    }
+
+    /// The output scale of level normalisation: `NORMALISED_PEAK` over the summed mode
+    /// amplitudes of a velocity-1 impulse at the voicing's hit (an upper bound of its peak).
+    fn update_level_reference(&mut self) {
+        self.level_scale = 1.0;
+        if !self.voicing.normalise {
+            return;
+        }
+        let Some(obj) = self.object.as_mut() else {
+            return;
+        };
+        if obj.update_forces(&self.voicing.hit).is_err() {
+            return;
+        }
+        let h = self.voicing.voxel_size_m(obj.extent, 1.0);
+        let phi_scale = 1.0 / (self.voicing.density_kg_m3 * h * h * h).sqrt();
+        let sum: f64 = obj
+            .basis
+            .solution
+            .eigenvalues
+            .iter()
+            .zip(&obj.forces)
+            .filter_map(|(&l, &force)| {
+                let (f, _) = tune(&self.voicing, l, h, 0.0, self.sample_rate_hz)?;
+                Some((force * phi_scale / (std::f64::consts::TAU * f)).abs())
+            })
+            .sum();
+        if sum.is_finite() && sum > 0.0 {
+            self.level_scale = super::voicing::NORMALISED_PEAK / sum;
         }
     }
 
@@ -203,7 +258,18 @@ impl AudioEngine {
                 velocity,
                 hit,
                 hardness_s,
-            } => self.strike(key, pitch, velocity, hit, hardness_s),
+            } => {
+                let ratio = match pitch {
+                    Pitch::Ratio(r) => Some(r),
+                    Pitch::Fundamental(f) => self.fundamental_hz().map(|f0| f / f0),
+                };
+                match ratio {
+                    Some(r) => self.strike(key, r, velocity, hit, hardness_s),
+                    None => {
+                        self.stats.dropped_strikes.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
             Event::Mute { key } => {
                 for v in self.voices.iter_mut().filter(|v| v.key == Some(key)) {
                     v.muted = true;
@@ -401,7 +467,7 @@ impl AudioEngine {
 
     /// Output gain (ramped over the block), silence sweep, statistics.
     fn finish_block(&mut self, out: &mut [f32], started: Instant) {
-        let target = self.voicing.output_gain;
+        let target = self.voicing.output_gain * self.level_scale;
         let n = out.len().max(1) as f64;
         for (k, o) in out.iter_mut().enumerate() {
             let g = self.gain_now + (target - self.gain_now) * (k + 1) as f64 / n;

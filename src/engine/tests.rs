@@ -54,7 +54,7 @@ fn strike(key: u8, pitch: f64) -> TimedEvent {
         offset: 0,
         event: Event::Strike {
             key,
-            pitch,
+            pitch: Pitch::Ratio(pitch),
             velocity: 1.0,
             hit: None,
             hardness_s: None,
@@ -279,7 +279,7 @@ fn bad_input_is_refused_and_never_reaches_the_audio() {
         offset: 0,
         event: Event::Strike {
             key: 3,
-            pitch: f64::NAN,
+            pitch: Pitch::Ratio(f64::NAN),
             velocity: 1.0,
             hit: None,
             hardness_s: None,
@@ -337,4 +337,54 @@ fn edits_during_a_solve_coalesce_to_the_newest() {
     assert_eq!(calls.load(Ordering::SeqCst), 2);
     audio.process(&mut [0.0; 64], &[]);
     assert_eq!(audio.object_extent(), Some(14));
+}
+
+#[test]
+fn normalised_strikes_peak_near_the_target_level() {
+    // A velocity-1 impulse at the voicing's hit peaks at most NORMALISED_PEAK (the sum of
+    // mode amplitudes bounds the peak) and, for a bar dominated by a few modes, within 12 dB
+    // of it; a 10x stiffer material changes the physical level but not the normalised one
+    // by more than the 12 dB window.
+    for e_scale in [1.0, 10.0] {
+        let mut v = steel();
+        v.normalise = true;
+        v.youngs_modulus_pa *= e_scale;
+        let (mut audio, _c) = ready(EngineConfig::default(), v, bar(24));
+        let out = render(&mut audio, 9600, &[strike(1, 1.0)]);
+        let peak = out.iter().fold(0f32, |m, x| m.max(x.abs())) as f64;
+        let target = voicing::NORMALISED_PEAK;
+        assert!(
+            peak <= target * 1.0001 && peak > target / 4.0,
+            "E x{e_scale}: peak {peak}"
+        );
+    }
+}
+
+#[test]
+fn a_fundamental_pitch_puts_the_lowest_mode_on_the_note() {
+    // The "pitch" mapping: A4 scales the bar so that its lowest mode rings at 440 Hz, resolved
+    // in the same block the object arrives in (the first strike after a solve is not lost).
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    control.request(request(bar(24), 30));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let a4 = TimedEvent {
+        offset: 0,
+        event: Event::Strike {
+            key: 69,
+            pitch: Pitch::Fundamental(440.0),
+            velocity: 1.0,
+            hit: None,
+            hardness_s: None,
+        },
+    };
+    render(&mut audio, 64, &[a4]);
+    let f0 = audio.voice_tunings(69)[0].0;
+    // Steel's Rayleigh damping lowers the damped frequency by d^2 / 2 w^2 ~ 1e-9.
+    assert!((f0 / 440.0 - 1.0).abs() < 1e-6, "{f0}");
 }

@@ -10,6 +10,9 @@
 use crate::material::{DampedMode, Damping, Material};
 use std::f64::consts::TAU;
 
+/// Peak bound of a normalised velocity-1 strike (-6 dBFS): the sum of its modes' amplitudes.
+pub const NORMALISED_PEAK: f64 = 0.5;
+
 /// Most Caughey terms a [`DampingParams`] holds (the measured materials use at most 3).
 pub const MAX_CAUGHEY_TERMS: usize = 6;
 
@@ -133,6 +136,10 @@ pub struct Voicing {
     pub hardness_s: f64,
     /// Output gain (linear).
     pub output_gain: f64,
+    /// Level normalisation: scale the output so that a velocity-1 strike at the voicing's hit
+    /// peaks at most at [`NORMALISED_PEAK`] whatever the object, material and size (an
+    /// instrument's behaviour). Off: physical units (modal displacement, m), as the CLI writes.
+    pub normalise: bool,
     /// Extra decay applied to a muted note (note-off with mute on), 1/s.
     pub mute_decay_per_s: f64,
 }
@@ -173,6 +180,7 @@ impl Voicing {
             hit: HitPoint::default(),
             hardness_s: 1e-3,
             output_gain: 1.0,
+            normalise: false,
             mute_decay_per_s: 40.0,
         })
     }

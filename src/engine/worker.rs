@@ -106,10 +106,14 @@ struct Mailbox {
     shutdown: bool,
 }
 
+/// Polled by the worker for requests (see [`EngineControl::set_request_source`]).
+pub type RequestSource = Box<dyn FnMut() -> Option<ObjectRequest> + Send>;
+
 struct Shared {
     mailbox: Mutex<Mailbox>,
     wake: Condvar,
     status: Mutex<WorkerStatus>,
+    source: Mutex<Option<RequestSource>>,
 }
 
 /// Locks, recovering from a poisoned lock (a panicking solver must not wedge the editor).
@@ -143,6 +147,7 @@ impl EngineControl {
                 last: None,
                 solves: 0,
             }),
+            source: Mutex::new(None),
         });
         let worker = Worker {
             shared: shared.clone(),
@@ -168,6 +173,15 @@ impl EngineControl {
         self.shared.wake.notify_one();
     }
 
+    /// Lets the worker ask for requests itself: `source` is called on the worker thread every
+    /// poll (20 ms) while no request waits, and what it returns is solved. A plugin uses it to
+    /// notice solve-relevant parameter changes (Poisson's ratio, solver, a restored object)
+    /// without the audio thread ever touching a lock.
+    pub fn set_request_source(&self, source: RequestSource) {
+        *lock(&self.shared.source) = Some(source);
+        self.shared.wake.notify_one();
+    }
+
     /// The worker's status.
     pub fn status(&self) -> WorkerStatus {
         lock(&self.shared.status).clone()
@@ -176,6 +190,21 @@ impl EngineControl {
     /// The audio side's statistics.
     pub fn stats(&self) -> &EngineStats {
         &self.stats
+    }
+
+    /// Waits until at least `count` solver runs have finished (successfully or not) and none is
+    /// running, at most `timeout`; true if it got there. A plugin's `activate` uses it so that
+    /// the first note already has an object.
+    pub fn wait_for_solves(&self, count: u64, timeout: Duration) -> bool {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            let st = lock(&self.shared.status).clone();
+            if st.solves >= count && st.state == SolveState::Idle {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        false
     }
 
     /// Waits until no request is waiting and no solve is running, at most `timeout`; true if
@@ -236,6 +265,7 @@ impl Worker {
                 }
                 mb.request.take()
             };
+            let request = request.or_else(|| lock(&self.shared.source).as_mut().and_then(|f| f()));
             if let Some(request) = request {
                 self.solve(&request);
             }

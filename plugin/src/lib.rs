@@ -1,0 +1,244 @@
+//! ModalForge as a VST3/CLAP instrument: MIDI notes strike a sculpted voxel object whose modes
+//! come from the engine's worker (FEM), played by the wait-free engine.
+//!
+//! Where it sits: the host calls [`ModalForge::process`] on its audio thread; this crate turns
+//! parameters into an engine [`Voicing`](modalforge::engine::Voicing) and MIDI into engine
+//! events ([`keymap`]), and lets the engine's worker poll the parameters that need a re-solve
+//! ([`solve_source`]), so the audio thread never takes a lock. The object persists with the
+//! project (`#[persist = "object"]`, [`sculpt`]).
+//!
+//! Lifecycle: `activate` starts the engine (allocates, spawns the worker) unless one already
+//! runs at that sample rate; `process` and `reset` never allocate (debug builds with the
+//! `assert_process_allocs` feature abort if they do).
+#![deny(missing_docs)]
+
+pub mod keymap;
+pub mod materials;
+pub mod params;
+pub mod sculpt;
+
+use keymap::KeyMap;
+use materials::MaterialTable;
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::engine::{
+    AudioEngine, Engine, EngineConfig, EngineControl, FemSolver, ObjectRequest, TimedEvent,
+};
+use modalforge::fem::ElementKind;
+use nice_plug::prelude::*;
+use params::{ElementChoice, ModalForgeParams, SolverChoice};
+use std::num::NonZeroU32;
+use std::sync::Arc;
+
+/// Most note events taken per block (more are dropped, never allocated for).
+const MAX_EVENTS: usize = 1024;
+
+/// How long `activate` waits for the first solve.
+const FIRST_SOLVE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// The plugin.
+pub struct ModalForge {
+    params: Arc<ModalForgeParams>,
+    table: Arc<MaterialTable>,
+    engine: Option<AudioEngine>,
+    control: Option<Arc<EngineControl>>,
+    keymap: KeyMap,
+    events: Vec<TimedEvent>,
+    mono: Vec<f32>,
+}
+
+impl Default for ModalForge {
+    fn default() -> Self {
+        Self {
+            params: Arc::new(ModalForgeParams::default()),
+            table: Arc::new(MaterialTable::new()),
+            engine: None,
+            control: None,
+            keymap: KeyMap::default(),
+            events: Vec::with_capacity(MAX_EVENTS),
+            mono: Vec::new(),
+        }
+    }
+}
+
+/// The request the parameters and the persisted object describe, or `None` if the object is
+/// malformed (the previous one keeps playing).
+pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Option<ObjectRequest> {
+    let grid = params
+        .object
+        .read()
+        .unwrap_or_else(|e| e.into_inner())
+        .to_grid()
+        .ok()?;
+    Some(ObjectRequest {
+        grid,
+        element: match params.element.value() {
+            ElementChoice::Hex8i => ElementKind::Hex8Incompatible,
+            ElementChoice::Hex27 => ElementKind::Hex27,
+        },
+        poisson_ratio: params.poisson_ratio(table),
+        solver: match params.solver.value() {
+            SolverChoice::Auto => SolverKind::Auto,
+            SolverChoice::Lanczos => SolverKind::Lanczos,
+            SolverChoice::Lobpcg => SolverKind::Lobpcg,
+        },
+        options: EigenOptions {
+            count: ModeCount::First(params.modes.value().max(1) as usize),
+            ..EigenOptions::default()
+        },
+    })
+}
+
+/// The worker's request source: a new request whenever the object or a solve-relevant
+/// parameter differs from what was last requested (runs on the worker thread).
+pub fn solve_source(
+    params: Arc<ModalForgeParams>,
+    table: Arc<MaterialTable>,
+) -> modalforge::engine::RequestSource {
+    let mut last: Option<(u64, ElementKind, u64, SolverKind, usize)> = None;
+    Box::new(move || {
+        let r = object_request(&params, &table)?;
+        let count = match r.options.count {
+            ModeCount::First(k) => k,
+            ModeCount::Below(_) => 0,
+        };
+        let key = (
+            r.grid.shape_hash(),
+            r.element,
+            r.poisson_ratio.to_bits(),
+            r.solver,
+            count,
+        );
+        if last == Some(key) {
+            return None;
+        }
+        last = Some(key);
+        Some(r)
+    })
+}
+
+impl Plugin for ModalForge {
+    const NAME: &'static str = "ModalForge";
+    const VENDOR: &'static str = "ModalForge";
+    const URL: &'static str = "https://example.invalid/modalforge";
+    const EMAIL: &'static str = "modalforge@example.invalid";
+    const VERSION: &'static str = env!("CARGO_PKG_VERSION");
+
+    const AUDIO_IO_LAYOUTS: &'static [AudioIOLayout] = &[AudioIOLayout {
+        main_input_channels: None,
+        main_output_channels: NonZeroU32::new(2),
+        ..AudioIOLayout::const_default()
+    }];
+
+    const MIDI_INPUT: MidiConfig = MidiConfig::MidiCCs;
+    const SAMPLE_ACCURATE_AUTOMATION: bool = false;
+
+    // The egui editor joins in the next step; until then hosts show their generic controls.
+    type Editor = ();
+    type SysExMessage = ();
+    type BackgroundTask = ();
+
+    fn params(&self) -> Arc<dyn Params> {
+        self.params.clone()
+    }
+
+    fn activate(
+        &mut self,
+        _layout: &AudioIOLayout,
+        config: &BufferConfig,
+        _context: &mut impl ActivateContext<Self>,
+    ) -> bool {
+        let rate = config.sample_rate as f64;
+        self.mono = vec![0.0; config.max_buffer_size as usize];
+        if self
+            .engine
+            .as_ref()
+            .is_some_and(|e| e.sample_rate_hz() == rate)
+        {
+            return true;
+        }
+        let voicing = self.params.voicing(&self.table, 1.0, 1.0);
+        let started = Engine::start(
+            rate,
+            EngineConfig::default(),
+            voicing,
+            vec![Box::new(FemSolver)],
+        );
+        match started {
+            Ok((audio, control)) => {
+                control.set_request_source(solve_source(self.params.clone(), self.table.clone()));
+                // The first object (a fraction of a second for the default shape) is there
+                // before the first note; a slow one keeps solving in the background.
+                control.wait_for_solves(1, FIRST_SOLVE_WAIT);
+                self.engine = Some(audio);
+                self.control = Some(Arc::new(control));
+                true
+            }
+            Err(e) => {
+                nice_log!("modalforge: cannot start the engine: {e}");
+                false
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        if let Some(e) = self.engine.as_mut() {
+            e.reset();
+        }
+        self.keymap.reset();
+    }
+
+    fn process(
+        &mut self,
+        buffer: &mut Buffer,
+        _aux: &mut AuxiliaryBuffers,
+        context: &mut impl ProcessContext<Self>,
+    ) -> ProcessStatus {
+        let n = buffer.samples();
+        let Some(engine) = self.engine.as_mut() else {
+            for ch in buffer.as_slice() {
+                ch.fill(0.0);
+            }
+            return ProcessStatus::Normal;
+        };
+        self.events.clear();
+        while let Some(event) = context.next_event() {
+            self.keymap
+                .translate(&event, &self.params, engine, &mut self.events, MAX_EVENTS);
+        }
+        let (bend, wheel) = self.keymap.controllers();
+        let voicing = self.params.voicing(&self.table, bend, wheel);
+        // A voicing the engine refuses (cannot happen from these ranges) keeps the old one.
+        let _ = engine.set_voicing(voicing);
+        engine.set_mode_budget(self.params.mode_budget.value().max(1) as usize);
+        let n = n.min(self.mono.len());
+        let mono = &mut self.mono[..n];
+        engine.process(mono, &self.events);
+        for ch in buffer.as_slice() {
+            let len = ch.len().min(n);
+            ch[..len].copy_from_slice(&mono[..len]);
+        }
+        ProcessStatus::KeepAlive
+    }
+}
+
+impl ClapPlugin for ModalForge {
+    const CLAP_ID: &'static str = "org.modalforge.instrument";
+    const CLAP_DESCRIPTION: Option<&'static str> =
+        Some("Physically based impact sounds: strike a sculpted voxel object");
+    const CLAP_MANUAL_URL: Option<&'static str> = None;
+    const CLAP_SUPPORT_URL: Option<&'static str> = None;
+    const CLAP_FEATURES: &'static [ClapFeature] = &[
+        ClapFeature::Instrument,
+        ClapFeature::Synthesizer,
+        ClapFeature::Stereo,
+    ];
+}
+
+impl Vst3Plugin for ModalForge {
+    const VST3_CLASS_ID: [u8; 16] = *b"ModalForgeStrike";
+    const VST3_SUBCATEGORIES: &'static [Vst3SubCategory] =
+        &[Vst3SubCategory::Instrument, Vst3SubCategory::Synth];
+}
+
+nice_export_clap!(ModalForge);
+nice_export_vst3!(ModalForge);

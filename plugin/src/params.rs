@@ -1,0 +1,368 @@
+//! The plugin's automatable parameters (ids are short and frozen: hosts store them) and the
+//! conversion of their values into an engine [`Voicing`].
+//!
+//! Where it sits: read by [`crate::ModalForge::process`] every block (voicing, key mapping)
+//! and by the worker's request source (solve-relevant ones: material's Poisson's ratio,
+//! element, solver, mode count).
+
+use crate::materials::{MaterialChoice, MaterialTable};
+use modalforge::engine::{DampingParams, HitPoint, Voicing};
+use nice_plug::prelude::*;
+use std::sync::{Arc, RwLock};
+
+/// How MIDI keys strike the object.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KeyMapping {
+    /// The object is scaled so that its fundamental lands on the played note.
+    #[id = "pitch"]
+    #[name = "Pitch"]
+    Pitch,
+    /// Keys select hit points spread over the object (C2 upward), at its own size.
+    #[id = "positions"]
+    #[name = "Positions"]
+    Positions,
+}
+
+/// Which damping law is used.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DampingChoice {
+    /// The material preset's own model (Rayleigh, Caughey or power law, as published).
+    #[id = "material"]
+    #[name = "Material"]
+    Material,
+    /// Rayleigh `c = alpha1 + alpha2 omega^2` with the knobs below.
+    #[id = "rayleigh"]
+    #[name = "Rayleigh"]
+    Rayleigh,
+    /// Power law `c = mu1 omega^(2 mu2)` with the knobs below.
+    #[id = "power"]
+    #[name = "Power law"]
+    PowerLaw,
+}
+
+/// Eigensolver for shape edits.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolverChoice {
+    /// LOBPCG for big objects, Lanczos otherwise.
+    #[id = "auto"]
+    #[name = "Auto"]
+    Auto,
+    /// Shift-invert Lanczos (exact, factorises).
+    #[id = "lanczos"]
+    #[name = "Lanczos"]
+    Lanczos,
+    /// LOBPCG with multigrid.
+    #[id = "lobpcg"]
+    #[name = "LOBPCG"]
+    Lobpcg,
+}
+
+/// Finite element.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ElementChoice {
+    /// Trilinear with incompatible modes: fast, ~1% (the default).
+    #[id = "hex8i"]
+    #[name = "Fast (hex8i)"]
+    Hex8i,
+    /// Triquadratic: accurate for thin plates, ~6x the DOFs.
+    #[id = "hex27"]
+    #[name = "Accurate (hex27)"]
+    Hex27,
+}
+
+/// Float parameter with a formatter that round-trips through text (validators check it).
+fn float(
+    name: &str,
+    default: f32,
+    range: FloatRange,
+    unit: &'static str,
+    digits: usize,
+) -> FloatParam {
+    FloatParam::new(name, default, range)
+        .with_unit(unit)
+        .with_value_to_string(formatters::v2s_f32_rounded(digits))
+}
+
+/// A log-skewed range.
+fn skewed(min: f32, max: f32) -> FloatRange {
+    FloatRange::Skewed {
+        min,
+        max,
+        factor: FloatRange::skew_factor(-2.0),
+    }
+}
+
+/// Every parameter, plus the persisted object.
+#[derive(Params)]
+pub struct ModalForgeParams {
+    /// The sculpted object (persisted with the project).
+    #[persist = "object"]
+    pub object: Arc<RwLock<crate::sculpt::Sculpt>>,
+
+    /// Material preset; "Custom" uses the E, rho and nu knobs.
+    #[id = "mat"]
+    pub material: EnumParam<MaterialChoice>,
+    /// Young's modulus for the custom material, GPa.
+    #[id = "e"]
+    pub youngs_gpa: FloatParam,
+    /// Density for the custom material, kg/m^3.
+    #[id = "rho"]
+    pub density: FloatParam,
+    /// Poisson's ratio for the custom material (a change re-solves).
+    #[id = "nu"]
+    pub poisson: FloatParam,
+    /// Object size: its longest side, m.
+    #[id = "size"]
+    pub size_m: FloatParam,
+
+    /// Damping law.
+    #[id = "dmod"]
+    pub damping: EnumParam<DampingChoice>,
+    /// Rayleigh mass term, 1/s.
+    #[id = "a1"]
+    pub alpha1: FloatParam,
+    /// Rayleigh stiffness term, microseconds.
+    #[id = "a2"]
+    pub alpha2_us: FloatParam,
+    /// Power-law coefficient.
+    #[id = "mu1"]
+    pub mu1: FloatParam,
+    /// Power-law exponent on omega^2.
+    #[id = "mu2"]
+    pub mu2: FloatParam,
+
+    /// Mallet contact time, ms (0 = an ideal impulse; longer is softer).
+    #[id = "hard"]
+    pub hardness_ms: FloatParam,
+    /// How much a soft key press lengthens the contact (0 = velocity only changes force).
+    #[id = "velh"]
+    pub velocity_hardness: FloatParam,
+    /// Hit point as fractions of the object's extent.
+    #[id = "hx"]
+    pub hit_x: FloatParam,
+    /// Hit point y.
+    #[id = "hy"]
+    pub hit_y: FloatParam,
+    /// Hit point z.
+    #[id = "hz"]
+    pub hit_z: FloatParam,
+    /// Strike along the struck face's normal (else along azimuth/elevation).
+    #[id = "fnrm"]
+    pub force_normal: BoolParam,
+    /// Force direction azimuth, degrees.
+    #[id = "faz"]
+    pub force_azimuth: FloatParam,
+    /// Force direction elevation, degrees (-90 = straight down).
+    #[id = "fel"]
+    pub force_elevation: FloatParam,
+
+    /// Output gain, dB.
+    #[id = "gain"]
+    pub gain_db: FloatParam,
+    /// Most modes ringing at once (quietest dropped first).
+    #[id = "budget"]
+    pub mode_budget: IntParam,
+    /// Key mapping.
+    #[id = "map"]
+    pub mapping: EnumParam<KeyMapping>,
+    /// Note-off damps the note.
+    #[id = "mute"]
+    pub note_off_mute: BoolParam,
+    /// Extra decay of a muted note, 1/s.
+    #[id = "mdec"]
+    pub mute_decay: FloatParam,
+
+    /// Eigensolver (a change re-solves).
+    #[id = "solver"]
+    pub solver: EnumParam<SolverChoice>,
+    /// Element (a change re-solves).
+    #[id = "elem"]
+    pub element: EnumParam<ElementChoice>,
+    /// Modes to compute (a change re-solves).
+    #[id = "modes"]
+    pub modes: IntParam,
+}
+
+impl Default for ModalForgeParams {
+    fn default() -> Self {
+        Self {
+            object: Arc::new(RwLock::new(crate::sculpt::Sculpt::default())),
+            material: EnumParam::new("Material", MaterialChoice::Glass),
+            youngs_gpa: float("E", 70.0, skewed(0.01, 1000.0), " GPa", 3),
+            density: float("Density", 2500.0, skewed(50.0, 25000.0), " kg/m3", 1),
+            poisson: float(
+                "Poisson",
+                0.25,
+                FloatRange::Linear {
+                    min: 0.0,
+                    max: 0.49,
+                },
+                "",
+                3,
+            ),
+            size_m: float("Size", 0.2, skewed(0.01, 4.0), " m", 4),
+            damping: EnumParam::new("Damping", DampingChoice::Material),
+            alpha1: float("Alpha1", 5.0, skewed(0.0, 2000.0), " /s", 3),
+            alpha2_us: float("Alpha2", 0.1, skewed(0.0, 50.0), " us", 4),
+            mu1: float("Mu1", 5.0, skewed(0.0, 1000.0), "", 3),
+            mu2: float("Mu2", 0.2, FloatRange::Linear { min: 0.0, max: 1.0 }, "", 3),
+            hardness_ms: float("Hardness", 0.5, skewed(0.0, 20.0), " ms", 3),
+            velocity_hardness: float(
+                "Vel > Hardness",
+                0.5,
+                FloatRange::Linear { min: 0.0, max: 1.0 },
+                "",
+                2,
+            ),
+            hit_x: float(
+                "Hit X",
+                0.37,
+                FloatRange::Linear { min: 0.0, max: 1.0 },
+                "",
+                3,
+            ),
+            hit_y: float(
+                "Hit Y",
+                0.41,
+                FloatRange::Linear { min: 0.0, max: 1.0 },
+                "",
+                3,
+            ),
+            hit_z: float(
+                "Hit Z",
+                1.0,
+                FloatRange::Linear { min: 0.0, max: 1.0 },
+                "",
+                3,
+            ),
+            force_normal: BoolParam::new("Force Normal", true),
+            force_azimuth: float(
+                "Force Azimuth",
+                0.0,
+                FloatRange::Linear {
+                    min: -180.0,
+                    max: 180.0,
+                },
+                " deg",
+                1,
+            ),
+            force_elevation: float(
+                "Force Elevation",
+                -90.0,
+                FloatRange::Linear {
+                    min: -90.0,
+                    max: 90.0,
+                },
+                " deg",
+                1,
+            ),
+            gain_db: float(
+                "Gain",
+                0.0,
+                FloatRange::Linear {
+                    min: -60.0,
+                    max: 24.0,
+                },
+                " dB",
+                1,
+            ),
+            mode_budget: IntParam::new(
+                "Mode Budget",
+                2048,
+                IntRange::Linear { min: 16, max: 8192 },
+            ),
+            mapping: EnumParam::new("Key Mapping", KeyMapping::Pitch),
+            note_off_mute: BoolParam::new("Note-off Mute", false),
+            mute_decay: float("Mute Decay", 40.0, skewed(1.0, 500.0), " /s", 1),
+            solver: EnumParam::new("Solver", SolverChoice::Auto),
+            element: EnumParam::new("Element", ElementChoice::Hex8i),
+            modes: IntParam::new("Modes", 60, IntRange::Linear { min: 8, max: 200 }),
+        }
+    }
+}
+
+impl ModalForgeParams {
+    /// The voicing the knobs describe (no allocation: the presets are a table).
+    /// `damping_scale` multiplies the damping (pitch bend), `hardness_scale` the contact time
+    /// (mod wheel).
+    pub fn voicing(
+        &self,
+        table: &MaterialTable,
+        damping_scale: f64,
+        hardness_scale: f64,
+    ) -> Voicing {
+        let preset = table.get(self.material.value());
+        let custom = self.material.value() == MaterialChoice::Custom;
+        let (e, rho) = if custom {
+            (
+                self.youngs_gpa.value() as f64 * 1e9,
+                self.density.value() as f64,
+            )
+        } else {
+            (preset.youngs_modulus_pa, preset.density_kg_m3)
+        };
+        let damping = match self.damping.value() {
+            DampingChoice::Material => preset.damping,
+            DampingChoice::Rayleigh => DampingParams::Rayleigh {
+                alpha1: self.alpha1.value() as f64,
+                alpha2: self.alpha2_us.value() as f64 * 1e-6,
+            },
+            DampingChoice::PowerLaw => DampingParams::PowerLaw {
+                mu1: self.mu1.value() as f64,
+                mu2: self.mu2.value() as f64,
+            },
+        };
+        let damping = scale_damping(damping, damping_scale);
+        let direction = if self.force_normal.value() {
+            None
+        } else {
+            let (az, el) = (
+                (self.force_azimuth.value() as f64).to_radians(),
+                (self.force_elevation.value() as f64).to_radians(),
+            );
+            Some([el.cos() * az.cos(), el.cos() * az.sin(), el.sin()])
+        };
+        Voicing {
+            youngs_modulus_pa: e,
+            density_kg_m3: rho,
+            size_m: self.size_m.value() as f64,
+            damping,
+            hit: HitPoint {
+                position: [
+                    self.hit_x.value() as f64,
+                    self.hit_y.value() as f64,
+                    self.hit_z.value() as f64,
+                ],
+                direction,
+            },
+            hardness_s: (self.hardness_ms.value() as f64 * 1e-3 * hardness_scale).min(0.1),
+            output_gain: 10f64.powf(self.gain_db.value() as f64 / 20.0),
+            normalise: true,
+            mute_decay_per_s: self.mute_decay.value() as f64,
+        }
+    }
+
+    /// Poisson's ratio of the selected material.
+    pub fn poisson_ratio(&self, table: &MaterialTable) -> f64 {
+        if self.material.value() == MaterialChoice::Custom {
+            self.poisson.value() as f64
+        } else {
+            table.get(self.material.value()).poisson_ratio
+        }
+    }
+}
+
+/// Multiplies every damping coefficient by `s` (the whole law scales: `c -> s c`).
+fn scale_damping(d: DampingParams, s: f64) -> DampingParams {
+    match d {
+        DampingParams::Rayleigh { alpha1, alpha2 } => DampingParams::Rayleigh {
+            alpha1: alpha1 * s,
+            alpha2: alpha2 * s,
+        },
+        DampingParams::PowerLaw { mu1, mu2 } => DampingParams::PowerLaw { mu1: mu1 * s, mu2 },
+        DampingParams::Caughey { eta, terms } => DampingParams::Caughey {
+            eta: eta.map(|e| e * s),
+            terms,
+        },
+    }
+}

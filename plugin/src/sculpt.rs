@@ -1,0 +1,69 @@
+//! The sculpted voxel object as the plugin persists it (`#[persist = "object"]`): dimensions
+//! and packed occupancy bits, serialised with the DAW project.
+
+use modalforge::shape::spec::ShapeSpec;
+use modalforge::shape::VoxelGrid;
+use serde::{Deserialize, Serialize};
+
+/// Largest grid side the editor allows (issue #4: resolution up to 32^3).
+pub const MAX_SIDE: usize = 32;
+
+/// A voxel object: dimensions and one bit per voxel, x fastest.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Sculpt {
+    /// Voxels along x, y, z.
+    pub dims: [usize; 3],
+    /// Occupancy, 8 voxels per byte, x fastest, then y, then z.
+    pub bits: Vec<u8>,
+}
+
+impl Sculpt {
+    /// From a grid (its voxel size is not kept: the Size parameter sets it).
+    pub fn from_grid(grid: &VoxelGrid) -> Self {
+        let dims = grid.dims();
+        let mut bits = vec![0u8; grid.occupancy().len().div_ceil(8)];
+        for (i, &solid) in grid.occupancy().iter().enumerate() {
+            if solid {
+                bits[i / 8] |= 1 << (i % 8);
+            }
+        }
+        Self { dims, bits }
+    }
+
+    /// The grid in reference units (voxel edge 1), or why it cannot be one.
+    pub fn to_grid(&self) -> Result<VoxelGrid, String> {
+        let n = self.dims.iter().product::<usize>();
+        if self.dims.iter().any(|&d| d == 0 || d > MAX_SIDE) || self.bits.len() != n.div_ceil(8) {
+            return Err(format!(
+                "stored object {:?} with {} bytes is malformed (sides 1..={MAX_SIDE})",
+                self.dims,
+                self.bits.len()
+            ));
+        }
+        let occupancy = (0..n)
+            .map(|i| self.bits[i / 8] >> (i % 8) & 1 == 1)
+            .collect();
+        VoxelGrid::from_occupancy(self.dims, 1.0, occupancy).map_err(|e| e.to_string())
+    }
+
+    /// A built-in shape spec (see the CLI's `--shape` syntax) at scale 1.
+    pub fn from_spec(spec: &str) -> Result<Self, String> {
+        match spec.parse::<ShapeSpec>().map_err(|e| e.to_string())? {
+            ShapeSpec::Primitive { shape, hollow } => {
+                let mut grid = shape.rasterize(1.0, 1.0).map_err(|e| e.to_string())?;
+                if let Some(w) = hollow {
+                    grid = modalforge::shape::ops::hollow(&grid, w.round().max(1.0) as usize);
+                }
+                Ok(Self::from_grid(&grid))
+            }
+            _ => Err(format!("'{spec}' is a file; use a built-in shape")),
+        }
+    }
+}
+
+impl Default for Sculpt {
+    /// A small hemispherical bowl, 16 voxels across with a 2-voxel wall.
+    fn default() -> Self {
+        Self::from_spec("bowl:d=16,wall=2").expect("the default shape is valid")
+    }
+}

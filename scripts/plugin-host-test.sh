@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Builds the VST3/CLAP bundles and runs the plugin in a real third-party host (pedalboard),
+# checking its spectrum against `modalforge modes` (plugin/tests/host_test.py).
+# Installs what it needs: cargo-nice-plug (crates.io) and a Python venv with pedalboard.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/bundle.sh
+cargo build --release --locked --bin modalforge
+VENV=target/host-venv
+if [ ! -x "$VENV/bin/python" ]; then
+  python3 -m venv "$VENV" || { apt-get update -qq && apt-get install -y -qq python3-venv && python3 -m venv "$VENV"; }
+fi
+"$VENV/bin/pip" install -q --disable-pip-version-check pedalboard==0.9.* mido numpy
+"$VENV/bin/python" plugin/tests/host_test.py target/bundled/ModalForge.vst3 target/release/modalforge
