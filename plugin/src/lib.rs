@@ -242,3 +242,6 @@ impl Vst3Plugin for ModalForge {
 
 nice_export_clap!(ModalForge);
 nice_export_vst3!(ModalForge);
+
+#[cfg(test)]
+mod tests;

@@ -173,6 +173,11 @@ impl AudioEngine {
         if arrived || revoiced {
             self.update_level_reference();
         }
+        if self.active_modes() == 0 {
+            // Nothing rings: a gain change needs no ramp (a ramp would soften this block's
+            // strikes instead).
+            self.gain_now = self.voicing.output_gain * self.level_scale;
+        }
         out.fill(0.0);
         let mut done = 0;
         let mut next_event = 0;

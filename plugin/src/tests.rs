@@ -1,0 +1,83 @@
+//! Plugin-side logic without a host: the persisted object, the key mappings, parameters to
+//! voicing. (The host test, `plugin/tests/host_test.py`, covers the plugin in a real host.)
+
+use super::*;
+use keymap::KeyMap;
+use materials::MaterialChoice;
+use sculpt::Sculpt;
+
+#[test]
+fn the_persisted_object_round_trips_and_rejects_bad_states() {
+    let s = Sculpt::default();
+    let grid = s.to_grid().unwrap();
+    assert_eq!(Sculpt::from_grid(&grid), s);
+    assert!(grid.count() > 0);
+    // A truncated or oversized state is refused with a one-line reason, never a panic.
+    let short = Sculpt {
+        bits: s.bits[..s.bits.len() - 1].to_vec(),
+        ..s.clone()
+    };
+    assert!(short.to_grid().unwrap_err().contains("malformed"));
+    let huge = Sculpt {
+        dims: [64, 64, 64],
+        bits: vec![0xFF; 64 * 64 * 8],
+    };
+    assert!(huge.to_grid().is_err());
+    assert!(Sculpt::from_spec("teapot").is_err());
+}
+
+#[test]
+fn positions_cover_the_top_face_and_stay_inside_it() {
+    let mut seen = std::collections::HashSet::new();
+    for key in 0..=127u8 {
+        let p = KeyMap::position_of(key);
+        assert!(p.iter().all(|c| (0.0..=1.0).contains(c)), "{key}: {p:?}");
+        assert_eq!(p[2], 1.0);
+        seen.insert([(p[0] * 1e6) as i64, (p[1] * 1e6) as i64]);
+    }
+    // 12 columns x 5 rows of distinct points.
+    assert_eq!(seen.len(), 60);
+}
+
+#[test]
+fn presets_and_custom_knobs_reach_the_voicing() {
+    let params = ModalForgeParams::default();
+    let table = MaterialTable::new();
+    let v = params.voicing(&table, 1.0, 1.0);
+    let glass = modalforge::material::Material::preset("glass").unwrap();
+    assert_eq!(params.material.value(), MaterialChoice::Glass);
+    assert_eq!(v.youngs_modulus_pa, glass.youngs_modulus_pa);
+    assert_eq!(v.density_kg_m3, glass.density_kg_m3);
+    assert!(v.validate().is_ok() && v.normalise);
+    // Every preset gives a valid voicing and its own Poisson's ratio.
+    for (i, _) in MaterialChoice::variants().iter().enumerate() {
+        let choice = MaterialChoice::from_index(i);
+        let row = table.get(choice);
+        assert!(row.youngs_modulus_pa > 0.0 && row.density_kg_m3 > 0.0);
+        assert!((0.0..0.5).contains(&row.poisson_ratio));
+    }
+    // Pitch bend and the mod wheel scale damping and contact time.
+    let v2 = params.voicing(&table, 2.0, 3.0);
+    assert!((v2.hardness_s / v.hardness_s - 3.0).abs() < 1e-9);
+    match (v.damping, v2.damping) {
+        (
+            modalforge::engine::DampingParams::Rayleigh { alpha1: a, .. },
+            modalforge::engine::DampingParams::Rayleigh { alpha1: b, .. },
+        ) => assert!((b / a - 2.0).abs() < 1e-12),
+        other => panic!("glass is Rayleigh: {other:?}"),
+    }
+}
+
+#[test]
+fn the_solve_source_asks_once_per_change() {
+    let params = Arc::new(ModalForgeParams::default());
+    let table = Arc::new(MaterialTable::new());
+    let mut source = solve_source(params.clone(), table);
+    let first = source().expect("the first poll asks for the object");
+    assert_eq!(first.grid.dims(), Sculpt::default().dims);
+    assert!(source().is_none(), "nothing changed");
+    let bar = modalforge::shape::VoxelGrid::from_fn([8, 2, 2], 1.0, |_, _, _| true).unwrap();
+    *params.object.write().unwrap() = Sculpt::from_grid(&bar);
+    assert!(source().is_some(), "a new object is solved");
+    assert!(source().is_none());
+}
