@@ -21,6 +21,7 @@
 
 mod audio;
 mod object;
+pub mod spectrum;
 mod voice;
 pub mod voicing;
 mod worker;
@@ -29,8 +30,8 @@ pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::SolvedObject;
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{
-    EngineControl, FemSolver, ModeSolver, ObjectRequest, RequestSource, SolveReport, SolveState,
-    WorkerStatus,
+    EngineControl, FemSolver, LatestObject, ModeSolver, ObjectRequest, RequestSource, SolveReport,
+    SolveState, WorkerStatus,
 };
 
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -12,25 +12,34 @@
 //! `assert_process_allocs` feature abort if they do).
 #![deny(missing_docs)]
 
+pub mod editor;
 pub mod keymap;
 pub mod materials;
 pub mod params;
+pub mod presets;
 pub mod sculpt;
 
+use editor::{EditorLink, EditorWindow};
 use keymap::KeyMap;
 use materials::MaterialTable;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    AudioEngine, Engine, EngineConfig, EngineControl, FemSolver, ObjectRequest, TimedEvent,
+    AudioEngine, Engine, EngineConfig, EngineControl, Event, FemSolver, ObjectRequest, Pitch,
+    TimedEvent,
 };
 use modalforge::fem::ElementKind;
 use nice_plug::prelude::*;
+use nice_plug_egui::EguiEditorState;
 use params::{ElementChoice, ModalForgeParams, SolverChoice};
 use std::num::NonZeroU32;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 /// Most note events taken per block (more are dropped, never allocated for).
 const MAX_EVENTS: usize = 1024;
+
+/// The key an editor audition strike plays on (outside MIDI's 0..=127).
+pub const AUDITION_KEY: u8 = 200;
 
 /// How long `activate` waits for the first solve.
 const FIRST_SOLVE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
@@ -44,6 +53,8 @@ pub struct ModalForge {
     keymap: KeyMap,
     events: Vec<TimedEvent>,
     mono: Vec<f32>,
+    link: Arc<EditorLink>,
+    editor_state: Arc<EguiEditorState>,
 }
 
 impl Default for ModalForge {
@@ -56,6 +67,14 @@ impl Default for ModalForge {
             keymap: KeyMap::default(),
             events: Vec::with_capacity(MAX_EVENTS),
             mono: Vec::new(),
+            link: Arc::new(EditorLink::default()),
+            editor_state: EguiEditorState::from_size(
+                nice_plug::editor::dpi::LogicalSize::new(
+                    editor::WINDOW_SIZE.0,
+                    editor::WINDOW_SIZE.1,
+                ),
+                1.0,
+            ),
         }
     }
 }
@@ -132,13 +151,21 @@ impl Plugin for ModalForge {
     const MIDI_INPUT: MidiConfig = MidiConfig::MidiCCs;
     const SAMPLE_ACCURATE_AUTOMATION: bool = false;
 
-    // The egui editor joins in the next step; until then hosts show their generic controls.
-    type Editor = ();
+    type Editor = nice_plug_egui::EguiEditor<EditorWindow>;
     type SysExMessage = ();
     type BackgroundTask = ();
 
     fn params(&self) -> Arc<dyn Params> {
         self.params.clone()
+    }
+
+    fn editor(&mut self, _executor: AsyncExecutor<Self>) -> Option<Self::Editor> {
+        editor::create(
+            self.params.clone(),
+            self.table.clone(),
+            self.link.clone(),
+            self.editor_state.clone(),
+        )
     }
 
     fn activate(
@@ -148,6 +175,9 @@ impl Plugin for ModalForge {
         _context: &mut impl ActivateContext<Self>,
     ) -> bool {
         let rate = config.sample_rate as f64;
+        self.link
+            .sample_rate_bits
+            .store(rate.to_bits(), Ordering::Relaxed);
         self.mono = vec![0.0; config.max_buffer_size as usize];
         if self
             .engine
@@ -169,8 +199,11 @@ impl Plugin for ModalForge {
                 // The first object (a fraction of a second for the default shape) is there
                 // before the first note; a slow one keeps solving in the background.
                 control.wait_for_solves(1, FIRST_SOLVE_WAIT);
+                let control = Arc::new(control);
+                *self.link.control.lock().unwrap_or_else(|e| e.into_inner()) =
+                    Some(control.clone());
                 self.engine = Some(audio);
-                self.control = Some(Arc::new(control));
+                self.control = Some(control);
                 true
             }
             Err(e) => {
@@ -201,6 +234,19 @@ impl Plugin for ModalForge {
             return ProcessStatus::Normal;
         };
         self.events.clear();
+        // Strikes the editor asked for (a click with the Hit tool): at the object's own size.
+        if self.link.audition.swap(0, Ordering::Relaxed) > 0 {
+            self.events.push(TimedEvent {
+                offset: 0,
+                event: Event::Strike {
+                    key: AUDITION_KEY,
+                    pitch: Pitch::Ratio(1.0),
+                    velocity: 0.8,
+                    hit: None,
+                    hardness_s: None,
+                },
+            });
+        }
         while let Some(event) = context.next_event() {
             self.keymap
                 .translate(&event, &self.params, engine, &mut self.events, MAX_EVENTS);

@@ -7,11 +7,13 @@
 
 use super::voicing::HitPoint;
 use crate::modal::{Hit, HitError, ModeBasis};
+use std::sync::Arc;
 
 /// A shape's modes ready to be struck.
 pub struct SolvedObject {
-    /// The solved shape (reference units).
-    pub basis: ModeBasis,
+    /// The solved shape (reference units), shared with the editor's spectrum view (the last
+    /// reference is dropped on the worker: retired objects travel back through a ring).
+    pub basis: Arc<ModeBasis>,
     /// Increases with every solved edit; modes keep it so a voice knows which object they are.
     pub generation: u64,
     /// Name of the solver that produced it.
@@ -27,7 +29,12 @@ pub struct SolvedObject {
 
 impl SolvedObject {
     /// Wraps a solved basis. Allocates.
-    pub fn new(basis: ModeBasis, generation: u64, solver: &'static str, solve_ms: f64) -> Self {
+    pub fn new(
+        basis: Arc<ModeBasis>,
+        generation: u64,
+        solver: &'static str,
+        solve_ms: f64,
+    ) -> Self {
         let modes = basis.mode_count();
         let extent = basis.grid_dims().into_iter().max().unwrap_or(1);
         Self {

@@ -388,3 +388,35 @@ fn a_fundamental_pitch_puts_the_lowest_mode_on_the_note() {
     // Steel's Rayleigh damping lowers the damped frequency by d^2 / 2 w^2 ~ 1e-9.
     assert!((f0 / 440.0 - 1.0).abs() < 1e-6, "{f0}");
 }
+
+#[test]
+fn the_spectrum_view_lists_what_the_offline_voicing_plays() {
+    // Truth: ModeBasis::mode_set for the same material, size and hit (impulse strike). The
+    // view's frequencies and decays equal it to rounding (1e-9 relative); its amplitudes are
+    // the mode set's gains (the same formula, 1e-9 relative). The latest object the control
+    // reports is the one just solved.
+    let voicing = steel();
+    let (_audio, control) = ready(EngineConfig::default(), voicing, bar(24));
+    let latest = control.latest_object().expect("a solved object");
+    assert_eq!(latest.generation, 1);
+    let lines = spectrum::spectrum(&latest.basis, &voicing, FS).unwrap();
+
+    let material = Material::preset("steel").unwrap();
+    let h = voicing.size_m / 24.0;
+    let dims = latest.basis.grid_dims();
+    let hit = Hit {
+        point_m: [0, 1, 2].map(|a| voicing.hit.position[a] * dims[a] as f64 * h),
+        direction: None,
+    };
+    let set = latest.basis.mode_set(&material, h, &hit).unwrap();
+    let below_nyquist = set.freq_hz().iter().filter(|&&f| f < FS / 2.0).count();
+    assert!(lines.len() >= 10, "{} lines", lines.len());
+    assert_eq!(lines.len(), below_nyquist);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1e-30);
+    for (i, line) in lines.iter().enumerate() {
+        assert!(close(line.freq_hz, set.freq_hz()[i]), "mode {i}");
+        assert!(close(line.decay_per_s, set.decay_per_s()[i]), "mode {i}");
+        assert!(close(line.amplitude, set.gain()[i].abs()), "mode {i}");
+        assert!(line.t60_s() > 0.0);
+    }
+}

@@ -114,6 +114,16 @@ struct Shared {
     wake: Condvar,
     status: Mutex<WorkerStatus>,
     source: Mutex<Option<RequestSource>>,
+    latest: Mutex<Option<LatestObject>>,
+}
+
+/// The newest solved object, for views (the editor's spectrum): its generation and modes.
+#[derive(Clone)]
+pub struct LatestObject {
+    /// Generation (as in [`SolveReport::generation`]).
+    pub generation: u64,
+    /// The modes in reference units (see [`super::spectrum`]).
+    pub basis: Arc<ModeBasis>,
 }
 
 /// Locks, recovering from a poisoned lock (a panicking solver must not wedge the editor).
@@ -148,6 +158,7 @@ impl EngineControl {
                 solves: 0,
             }),
             source: Mutex::new(None),
+            latest: Mutex::new(None),
         });
         let worker = Worker {
             shared: shared.clone(),
@@ -185,6 +196,11 @@ impl EngineControl {
     /// The worker's status.
     pub fn status(&self) -> WorkerStatus {
         lock(&self.shared.status).clone()
+    }
+
+    /// The newest solved object (the one the audio side plays, or is about to), if any.
+    pub fn latest_object(&self) -> Option<LatestObject> {
+        lock(&self.shared.latest).clone()
     }
 
     /// The audio side's statistics.
@@ -302,6 +318,11 @@ impl Worker {
                 Ok(basis) => {
                     self.generation += 1;
                     let modes = basis.mode_count();
+                    let basis = Arc::new(basis);
+                    *lock(&self.shared.latest) = Some(LatestObject {
+                        generation: self.generation,
+                        basis: basis.clone(),
+                    });
                     // Replaces (frees, here) an older object still waiting for the audio side.
                     self.pending = Some(Box::new(SolvedObject::new(
                         basis,

@@ -1,0 +1,294 @@
+//! The editor's sculpting model: a working box of 32^3 voxels (the editor's resolution limit)
+//! with brush edits, mirror symmetry, primitives, hollowing, resampling and undo/redo. No GUI
+//! here, so tests drive it.
+//!
+//! Where it sits: the editor's view ([`super::view3d`]) turns clicks into cells; this model
+//! edits the box; [`Sculptor::sculpt`] crops it into the [`Sculpt`] the plugin persists and the
+//! worker solves (the crop's longest side is what the Size parameter spans).
+
+use crate::sculpt::{Sculpt, MAX_SIDE};
+use modalforge::shape::spec::ShapeSpec;
+use modalforge::shape::VoxelGrid;
+
+/// Undo steps kept (each is one packed object, at most 4 KiB).
+const UNDO_DEPTH: usize = 100;
+
+/// Smallest object side a primitive or a resample may ask for.
+pub const MIN_SIDE: usize = 2;
+
+/// Side of the working box: objects sit in it centred, with room to grow.
+pub const BOX_SIDE: usize = MAX_SIDE;
+
+/// Voxel editing with history.
+#[derive(Clone, Debug)]
+pub struct Sculptor {
+    cells: Vec<bool>,
+    undo: Vec<Vec<bool>>,
+    redo: Vec<Vec<bool>>,
+    /// Brush radius in voxels (0 = one voxel).
+    pub brush_radius: usize,
+    /// Mirror edits across the box's centre plane normal to x, y, z.
+    pub mirror: [bool; 3],
+}
+
+impl Sculptor {
+    /// Opens an object, centred in the working box.
+    pub fn new(sculpt: &Sculpt) -> Result<Self, String> {
+        let grid = sculpt.to_grid()?;
+        let mut s = Self {
+            cells: Vec::new(),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            brush_radius: 0,
+            mirror: [false; 3],
+        };
+        s.place(&grid, None);
+        Ok(s)
+    }
+
+    /// Side of the working box, voxels.
+    pub fn side(&self) -> usize {
+        BOX_SIDE
+    }
+
+    /// Whether cell `c` is solid (outside the box is empty).
+    pub fn get(&self, c: [i64; 3]) -> bool {
+        self.index(c).is_some_and(|i| self.cells[i])
+    }
+
+    /// Solid voxels.
+    pub fn count(&self) -> usize {
+        self.cells.iter().filter(|&&s| s).count()
+    }
+
+    fn index(&self, c: [i64; 3]) -> Option<usize> {
+        let n = BOX_SIDE as i64;
+        c.iter()
+            .all(|&v| (0..n).contains(&v))
+            .then(|| (c[0] + n * (c[1] + n * c[2])) as usize)
+    }
+
+    /// The object as persisted and solved: the box cropped to the solid voxels, or an error if
+    /// nothing is solid.
+    pub fn sculpt(&self) -> Result<Sculpt, String> {
+        let (lo, dims) = self.bounds().ok_or("the object is empty: add voxels")?;
+        // `from_fn` passes voxel centres (x + 0.5, ...).
+        let grid = VoxelGrid::from_fn(dims, 1.0, |x, y, z| {
+            self.get([0, 1, 2].map(|a| lo[a] + [x, y, z][a].floor() as i64))
+        })
+        .map_err(|e| e.to_string())?;
+        Ok(Sculpt::from_grid(&grid))
+    }
+
+    /// Lowest solid corner and the solid voxels' bounding dimensions (the solved grid's),
+    /// `None` when empty.
+    pub fn bounds(&self) -> Option<([i64; 3], [usize; 3])> {
+        let n = BOX_SIDE as i64;
+        let (mut lo, mut hi) = ([n; 3], [-1i64; 3]);
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    if self.get([x, y, z]) {
+                        for (a, v) in [x, y, z].into_iter().enumerate() {
+                            lo[a] = lo[a].min(v);
+                            hi[a] = hi[a].max(v);
+                        }
+                    }
+                }
+            }
+        }
+        (hi[0] >= 0).then(|| (lo, [0, 1, 2].map(|a| (hi[a] - lo[a] + 1) as usize)))
+    }
+
+    /// Adds (or with `solid = false` removes) a ball of `brush_radius` voxels at `cell`, and its
+    /// mirror images; one undo step. Cells outside the box are skipped. Removing the last voxel
+    /// is refused (an empty object cannot be solved). Returns whether anything changed.
+    pub fn paint(&mut self, cell: [i64; 3], solid: bool) -> bool {
+        let before = self.cells.clone();
+        let r = self.brush_radius as i64;
+        let n = BOX_SIDE as i64;
+        let mut centres = vec![cell];
+        for a in 0..3 {
+            if self.mirror[a] {
+                let mirrored: Vec<[i64; 3]> = centres
+                    .iter()
+                    .map(|c| {
+                        let mut m = *c;
+                        m[a] = n - 1 - c[a];
+                        m
+                    })
+                    .collect();
+                centres.extend(mirrored);
+            }
+        }
+        for c in centres {
+            for dz in -r..=r {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        if dx * dx + dy * dy + dz * dz > r * r {
+                            continue;
+                        }
+                        if let Some(i) = self.index([c[0] + dx, c[1] + dy, c[2] + dz]) {
+                            self.cells[i] = solid;
+                        }
+                    }
+                }
+            }
+        }
+        if !self.cells.contains(&true) {
+            self.cells = before;
+            return false;
+        }
+        self.commit(before)
+    }
+
+    /// Replaces the object with a built-in primitive (the CLI's `--shape` names, e.g. `bowl`,
+    /// `bell:d=24,h=24,wall=2`) scaled so its longest side is `side` voxels; one undo step.
+    pub fn load_primitive(&mut self, spec: &str, side: usize) -> Result<(), String> {
+        let side = side.clamp(MIN_SIDE, MAX_SIDE);
+        let ShapeSpec::Primitive { shape, hollow } =
+            spec.parse::<ShapeSpec>().map_err(|e| e.to_string())?
+        else {
+            return Err(format!("'{spec}' is a file; load it with Load .vox"));
+        };
+        let longest = shape.extent().into_iter().fold(0.0, f64::max);
+        let mut grid = shape
+            .rasterize(side as f64 / longest, 1.0)
+            .map_err(|e| e.to_string())?;
+        if let Some(w) = hollow {
+            let w = (w * side as f64 / longest).round().max(1.0) as usize;
+            grid = modalforge::shape::ops::hollow(&grid, w);
+        }
+        if grid.count() == 0 {
+            return Err(format!(
+                "'{spec}' at {side} voxels is empty: raise the resolution"
+            ));
+        }
+        self.replace(&grid)
+    }
+
+    /// Replaces the object with `grid` (a loaded `.vox`, a preset); one undo step.
+    pub fn replace(&mut self, grid: &VoxelGrid) -> Result<(), String> {
+        let grid = grid.cropped();
+        if grid.count() == 0 {
+            return Err("the object is empty: nothing to load".into());
+        }
+        if let Some(d) = grid.dims().into_iter().find(|&d| d > MAX_SIDE) {
+            return Err(format!(
+                "the object is {d} voxels long, over the editor's {MAX_SIDE}: resample it first"
+            ));
+        }
+        let before = self.cells.clone();
+        self.place(&grid, None);
+        self.push_undo(before);
+        Ok(())
+    }
+
+    /// Keeps only a shell `wall` voxels thick (the inside becomes empty); one undo step.
+    pub fn hollow(&mut self, wall: usize) -> Result<(), String> {
+        let sculpt = self.sculpt()?;
+        let grid = sculpt.to_grid()?;
+        let shell = modalforge::shape::ops::hollow(&grid, wall.max(1));
+        if shell.count() == grid.count() {
+            return Err(format!("the object is already at most {wall} voxels thick"));
+        }
+        let (lo, _) = self.bounds().expect("not empty");
+        let before = self.cells.clone();
+        self.place(&shell, Some(lo));
+        self.push_undo(before);
+        Ok(())
+    }
+
+    /// Resamples the object so its longest side is `side` voxels (nearest voxel centre);
+    /// one undo step.
+    pub fn resample(&mut self, side: usize) -> Result<(), String> {
+        let side = side.clamp(MIN_SIDE, MAX_SIDE);
+        let (lo, dims) = self.bounds().ok_or("the object is empty: add voxels")?;
+        let longest = dims.into_iter().max().unwrap_or(1);
+        if longest == side {
+            return Ok(());
+        }
+        let s = side as f64 / longest as f64;
+        let new_dims = dims.map(|d| ((d as f64 * s).round() as usize).max(1));
+        // `from_fn` passes voxel centres; each takes the voxel its centre falls in.
+        let grid = VoxelGrid::from_fn(new_dims, 1.0, |x, y, z| {
+            let src = [x, y, z].map(|v| (v / s).floor() as i64);
+            self.get([lo[0] + src[0], lo[1] + src[1], lo[2] + src[2]])
+        })
+        .map_err(|e| e.to_string())?;
+        if grid.count() == 0 {
+            return Err(format!("at {side} voxels the object vanishes: use more"));
+        }
+        let before = self.cells.clone();
+        self.place(&grid, None);
+        self.push_undo(before);
+        Ok(())
+    }
+
+    /// Steps back; false when there is nothing to undo.
+    pub fn undo(&mut self) -> bool {
+        let Some(prev) = self.undo.pop() else {
+            return false;
+        };
+        let now = std::mem::replace(&mut self.cells, prev);
+        self.redo.push(now);
+        true
+    }
+
+    /// Steps forward again; false when there is nothing to redo.
+    pub fn redo(&mut self) -> bool {
+        let Some(next) = self.redo.pop() else {
+            return false;
+        };
+        let now = std::mem::replace(&mut self.cells, next);
+        self.undo.push(now);
+        true
+    }
+
+    /// Undo steps available.
+    pub fn undo_depth(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Redo steps available.
+    pub fn redo_depth(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Puts `grid` (at most [`BOX_SIDE`] per side) in a fresh box: centred, or with its low
+    /// corner at `at`.
+    fn place(&mut self, grid: &VoxelGrid, at: Option<[i64; 3]>) {
+        let dims = grid.dims();
+        let side = BOX_SIDE;
+        let lo = at.unwrap_or_else(|| [0, 1, 2].map(|a| (side.saturating_sub(dims[a]) / 2) as i64));
+        self.cells = vec![false; side * side * side];
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    if grid.get(x as isize, y as isize, z as isize) {
+                        let c = [lo[0] + x as i64, lo[1] + y as i64, lo[2] + z as i64];
+                        if let Some(i) = self.index(c) {
+                            self.cells[i] = true;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn commit(&mut self, before: Vec<bool>) -> bool {
+        if before == self.cells {
+            return false;
+        }
+        self.push_undo(before);
+        true
+    }
+
+    fn push_undo(&mut self, before: Vec<bool>) {
+        self.undo.push(before);
+        if self.undo.len() > UNDO_DEPTH {
+            self.undo.remove(0);
+        }
+        self.redo.clear();
+    }
+}

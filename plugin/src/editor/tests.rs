@@ -1,0 +1,258 @@
+//! Editor logic without a window: sculpting, undo/redo, mirror, primitives, hollow,
+//! resample, picking and hit selection. Truths: voxel counts worked out by hand, the geometry
+//! of an orthographic camera looking straight at a face, and projection/picking round trips.
+
+use super::sculptor::{Sculptor, BOX_SIDE};
+use super::view3d::{self, Camera, NORMALS};
+use super::*;
+
+fn block(dims: [usize; 3]) -> Sculpt {
+    let grid = modalforge::shape::VoxelGrid::from_fn(dims, 1.0, |_, _, _| true).unwrap();
+    Sculpt::from_grid(&grid)
+}
+
+fn app_with(sculpt: Sculpt) -> EditorApp {
+    let params = Arc::new(ModalForgeParams::default());
+    *params.object.write().unwrap() = sculpt;
+    EditorApp::new(
+        params,
+        Arc::new(MaterialTable::new()),
+        Arc::new(EditorLink::default()),
+    )
+}
+
+/// A camera looking along +y (from the front), one voxel per 10 pixels, at the box centre.
+fn front_camera() -> Camera {
+    Camera {
+        yaw: 0.0,
+        pitch: 0.0,
+        pixels_per_voxel: 10.0,
+        target: [BOX_SIDE as f32 / 2.0; 3],
+    }
+}
+
+#[test]
+fn sculpting_adds_removes_and_undoes_exactly() {
+    let mut s = Sculptor::new(&block([4, 4, 4])).unwrap();
+    assert_eq!(s.count(), 64);
+    let (lo, dims) = s.bounds().unwrap();
+    assert_eq!(dims, [4, 4, 4]);
+    // Centred in the 32-box: low corner at 14.
+    assert_eq!(lo, [14, 14, 14]);
+
+    // One voxel on top of the block (its top layer is z = 17), then a radius-1 ball (7 cells)
+    // centred above that voxel: the ball's lowest cell is the voxel, so it adds 6.
+    assert!(s.paint([15, 15, 18], true));
+    assert_eq!(s.count(), 65);
+    s.brush_radius = 1;
+    assert!(s.paint([15, 15, 19], true));
+    // Ball cells: centre, +-x, +-y, +-z; -z is [15,15,18], already solid.
+    assert_eq!(s.count(), 65 + 6);
+    assert_eq!(s.bounds().unwrap().1, [4, 4, 7]);
+
+    // Remove a corner voxel of the block.
+    s.brush_radius = 0;
+    assert!(s.paint([14, 14, 14], false));
+    assert_eq!(s.count(), 70);
+    // Painting what is already there changes nothing and adds no undo step.
+    let depth = s.undo_depth();
+    assert!(!s.paint([14, 14, 14], false));
+    assert_eq!(s.undo_depth(), depth);
+
+    // Undo walks back exactly, redo forward again; a new edit clears the redo list.
+    assert!(s.undo());
+    assert_eq!(s.count(), 71);
+    assert!(s.undo());
+    assert_eq!(s.count(), 65);
+    assert!(s.undo());
+    assert_eq!(s.count(), 64);
+    assert!(!s.undo());
+    assert!(s.redo());
+    assert_eq!(s.count(), 65);
+    assert!(s.paint([20, 20, 20], true));
+    assert!(!s.redo());
+    // The persisted object is the crop: a block plus a voxel off in space is its bounding box.
+    let sculpt = s.sculpt().unwrap();
+    assert_eq!(sculpt.dims, [7, 7, 7]);
+    assert_eq!(sculpt.to_grid().unwrap().count(), 66);
+}
+
+#[test]
+fn mirror_symmetry_and_the_last_voxel() {
+    let mut s = Sculptor::new(&block([2, 2, 2])).unwrap();
+    s.mirror = [true, true, false];
+    // A voxel at (1, 2, 15) and its images across x = 15.5 and y = 15.5.
+    assert!(s.paint([1, 2, 15], true));
+    for c in [[1, 2, 15], [30, 2, 15], [1, 29, 15], [30, 29, 15]] {
+        assert!(s.get(c), "{c:?}");
+    }
+    assert_eq!(s.count(), 8 + 4);
+    // Removing everything is refused: an empty object cannot be solved.
+    let mut one = Sculptor::new(&block([1, 1, 1])).unwrap();
+    let (lo, _) = one.bounds().unwrap();
+    assert!(!one.paint(lo, false));
+    assert_eq!(one.count(), 1);
+    assert!(one.sculpt().is_ok());
+}
+
+#[test]
+fn primitives_hollow_and_resample() {
+    let mut s = Sculptor::new(&block([2, 2, 2])).unwrap();
+    // A 10-voxel cube from the library, hollowed to a 1-voxel wall: 10^3 - 8^3 = 488.
+    s.load_primitive("box:x=10,y=10,z=10", 10).unwrap();
+    assert_eq!(s.count(), 1000);
+    s.hollow(1).unwrap();
+    assert_eq!(s.count(), 488);
+    // Hollowing again changes nothing and says so.
+    assert!(s.hollow(1).unwrap_err().contains("already"));
+    // Resampled to 20 voxels: every voxel becomes 2x2x2 (wall 2): 20^3 - 16^3 = 3904.
+    s.resample(20).unwrap();
+    assert_eq!(s.count(), 3904);
+    assert_eq!(s.bounds().unwrap().1, [20, 20, 20]);
+    // Three undo steps back to the block.
+    assert!(s.undo() && s.undo() && s.undo());
+    assert_eq!(s.count(), 8);
+    // Bad shapes are one-line errors and change nothing.
+    assert!(s.load_primitive("teapot", 16).is_err());
+    assert!(s.load_primitive("/tmp/x.vox", 16).is_err());
+    assert_eq!(s.count(), 8);
+    // Every primitive the editor offers loads at the smallest and largest side.
+    for name in PRIMITIVES {
+        for side in [8, 32] {
+            s.load_primitive(name, side).unwrap();
+            let d = s.bounds().unwrap().1;
+            assert!(d.into_iter().max().unwrap() <= 32, "{name} {side}: {d:?}");
+            assert!(s.count() > 0);
+        }
+    }
+}
+
+#[test]
+fn a_click_straight_at_a_face_picks_that_face() {
+    // Front camera: screen x = world x, screen up = world z, looking along +y. The ray through
+    // the view's centre (16, *, 16) meets the 4-block [14,18]^3 on its front face y = 14, in
+    // cell (16, 14, 16), normal -y; 15 pixels right and 5 up is x = 17.5, z = 16.5.
+    let s = Sculptor::new(&block([4, 4, 4])).unwrap();
+    let cam = front_camera();
+    let p = view3d::pick(&s, &cam, [0.0, 0.0]).unwrap();
+    assert_eq!(p.cell, [16, 14, 16]);
+    assert_eq!(NORMALS[p.normal], [0, -1, 0]);
+    assert!((p.point[1] - 14.0).abs() < 1e-3);
+    let p = view3d::pick(&s, &cam, [15.0, -5.0]).unwrap();
+    assert_eq!(p.cell, [17, 14, 16]);
+    assert!((p.point[0] - 17.5).abs() < 1e-3 && (p.point[2] - 16.5).abs() < 1e-3);
+    // Outside the block's silhouette: nothing.
+    assert!(view3d::pick(&s, &cam, [25.0, 0.0]).is_none());
+    // From straight above (elevation 89.9 degrees) the top face z = 18.
+    let top = Camera {
+        pitch: 1.5691,
+        ..cam
+    };
+    let p = view3d::pick(&s, &top, [0.0, 0.0]).unwrap();
+    assert_eq!(NORMALS[p.normal], [0, 0, 1]);
+    assert_eq!(p.cell[2], 17);
+}
+
+#[test]
+fn every_visible_face_picks_back_to_itself() {
+    // Round trip: project the centre of each face the view draws (nearest last), click there,
+    // and the pick is that face. Faces hidden behind nearer ones are skipped by checking that
+    // the face is the nearest one drawn at that pixel.
+    let mut s = Sculptor::new(&Sculpt::default()).unwrap();
+    s.load_primitive("bowl:d=16,wall=2", 12).unwrap();
+    let cam = Camera {
+        target: [16.0; 3],
+        pixels_per_voxel: 12.0,
+        ..Camera::default()
+    };
+    let faces = view3d::visible_faces(&s, &cam);
+    assert!(faces.len() > 100);
+    // Farthest first.
+    assert!(faces.windows(2).all(|w| w[0].depth >= w[1].depth));
+    let mut checked = 0;
+    for f in faces.iter().rev().step_by(7) {
+        let centre = [0, 1, 2].map(|a| f.corners.iter().map(|p| p[a]).sum::<f32>() / 4.0);
+        let (px, depth) = cam.project(centre);
+        let p = view3d::pick(&s, &cam, px).unwrap();
+        let picked_centre_depth = cam.project(p.point).1;
+        if (picked_centre_depth - depth).abs() > 1e-2 {
+            continue; // a nearer face covers this one's centre
+        }
+        assert_eq!((p.cell, p.normal), (f.cell, f.normal));
+        checked += 1;
+    }
+    assert!(checked > 20, "{checked} faces checked");
+}
+
+#[test]
+fn the_editor_sculpts_publishes_undoes_and_sets_hits() {
+    let mut app = app_with(block([4, 4, 4]));
+    app.camera = front_camera();
+    // Add on the front face: a voxel at y = 13, published to the persisted object.
+    app.tool = Tool::Add;
+    assert_eq!(app.click([0.0, 0.0]), None);
+    let published = app.params.object.read().unwrap().clone();
+    assert_eq!(published.dims, [4, 5, 4]);
+    assert_eq!(published.to_grid().unwrap().count(), 65);
+    // Undo publishes the block again.
+    assert!(app.undo());
+    assert_eq!(*app.params.object.read().unwrap(), block([4, 4, 4]));
+    assert!(app.redo());
+    assert_eq!(app.params.object.read().unwrap().dims, [4, 5, 4]);
+    assert!(app.undo());
+    // Remove the centre cell of the front face.
+    app.tool = Tool::Remove;
+    app.click([0.0, 0.0]);
+    assert_eq!(
+        app.params.object.read().unwrap().to_grid().unwrap().count(),
+        63
+    );
+    assert!(app.undo());
+
+    // The Hit tool: 15 px right and 5 px up on the front face is (17.5, 14, 16.5) in the box;
+    // the block spans [14, 18]^3, so the fractions are (0.875, 0, 0.625). It queues one strike.
+    app.tool = Tool::Hit;
+    let hit = app.click([15.0, -5.0]).unwrap();
+    let want = [0.875, 0.0, 0.625];
+    for (got, want) in hit.fractions.iter().zip(want) {
+        assert!((got - want).abs() < 1e-3, "{hit:?}");
+    }
+    assert_eq!(app.link.audition.load(Ordering::Relaxed), 1);
+    // A click that misses sets nothing and strikes nothing.
+    assert_eq!(app.click([300.0, 0.0]), None);
+    assert_eq!(app.link.audition.load(Ordering::Relaxed), 1);
+    // The default hit parameters (0.37, 0.41, 1.0) draw on the block's top.
+    let h = app.hit_point().unwrap();
+    assert!((h[2] - 18.0).abs() < 1e-4 && (h[0] - (14.0 + 0.37 * 4.0)).abs() < 1e-4);
+}
+
+#[test]
+fn the_editor_follows_a_state_the_host_restores() {
+    let mut app = app_with(block([4, 4, 4]));
+    *app.params.object.write().unwrap() = block([6, 2, 2]);
+    app.follow_host();
+    assert_eq!(app.sculptor.bounds().unwrap().1, [6, 2, 2]);
+    assert_eq!(app.sculptor.count(), 24);
+}
+
+#[test]
+fn presets_save_and_load_through_files() {
+    // The window's settings as a preset file, read back: same object and settings.
+    let app = app_with(block([5, 3, 2]));
+    let p = app.current_preset("mine").unwrap();
+    let dir = std::env::temp_dir().join(format!("mf-preset-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("mine.toml");
+    std::fs::write(&path, p.to_toml()).unwrap();
+    let back = Preset::from_toml(&std::fs::read_to_string(&path).unwrap(), "mine.toml").unwrap();
+    assert_eq!(back, p);
+    assert_eq!(back.sculpt().unwrap(), block([5, 3, 2]));
+    assert_eq!(back.material, "glass");
+    // A damaged file is refused with the file's name and what is wrong.
+    let bad = p.to_toml().replace("glass", "unobtainium");
+    let e = Preset::from_toml(&bad, "bad.toml").unwrap_err();
+    assert!(e.contains("bad.toml") && e.contains("unobtainium"), "{e}");
+    let e = Preset::from_toml("name = 3", "x.toml").unwrap_err();
+    assert!(e.contains("x.toml"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,280 @@
+//! The editor's 3D view of the voxel object: an orbiting orthographic camera, the exposed
+//! faces shaded and sorted back to front (painter's algorithm), and picking a clicked face by
+//! walking the ray through the grid (Amanatides & Woo's voxel traversal).
+//!
+//! Where it sits: between the window (pixels) and [`super::sculptor::Sculptor`] (cells). Pure
+//! geometry, no egui types, so picking is tested without a window.
+
+use super::sculptor::Sculptor;
+
+/// A 3D vector.
+pub type V3 = [f32; 3];
+
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The six face normals, as cell offsets.
+pub const NORMALS: [[i64; 3]; 6] = [
+    [-1, 0, 0],
+    [1, 0, 0],
+    [0, -1, 0],
+    [0, 1, 0],
+    [0, 0, -1],
+    [0, 0, 1],
+];
+
+/// An orbiting orthographic camera looking at `target` (world units: voxels, z up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Rotation about the vertical axis, radians.
+    pub yaw: f32,
+    /// Elevation above the horizontal, radians (positive: looking down).
+    pub pitch: f32,
+    /// Pixels per voxel.
+    pub pixels_per_voxel: f32,
+    /// The point at the view's centre.
+    pub target: V3,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Self {
+            yaw: -0.6,
+            pitch: 0.55,
+            pixels_per_voxel: 10.0,
+            target: [16.0; 3],
+        }
+    }
+}
+
+impl Camera {
+    /// Screen right, screen up and the viewing direction (into the screen), in world axes.
+    pub fn basis(&self) -> (V3, V3, V3) {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        let right = [cy, sy, 0.0];
+        let forward = [-sy * cp, cy * cp, -sp];
+        let up = cross(right, forward);
+        (right, up, forward)
+    }
+
+    /// Screen offset from the view's centre in pixels (y down) and depth (larger is farther).
+    pub fn project(&self, p: V3) -> ([f32; 2], f32) {
+        let (r, u, f) = self.basis();
+        let d = [0, 1, 2].map(|a| p[a] - self.target[a]);
+        (
+            [
+                dot(d, r) * self.pixels_per_voxel,
+                -dot(d, u) * self.pixels_per_voxel,
+            ],
+            dot(d, f),
+        )
+    }
+
+    /// The ray through a screen offset (pixels from the centre, y down): origin well in front
+    /// of the object and the viewing direction.
+    pub fn ray(&self, offset: [f32; 2]) -> (V3, V3) {
+        let (r, u, f) = self.basis();
+        let (sx, sy) = (
+            offset[0] / self.pixels_per_voxel,
+            -offset[1] / self.pixels_per_voxel,
+        );
+        let back = 4.0 * super::sculptor::BOX_SIDE as f32;
+        let o = [0, 1, 2].map(|a| self.target[a] + sx * r[a] + sy * u[a] - back * f[a]);
+        (o, f)
+    }
+
+    /// Rotates by a mouse drag (pixels), keeping the elevation within +-89 degrees.
+    pub fn orbit(&mut self, drag: [f32; 2]) {
+        self.yaw -= drag[0] * 0.01;
+        self.pitch = (self.pitch + drag[1] * 0.01).clamp(-1.55, 1.55);
+    }
+
+    /// Frames the solid voxels in a view of `size_px` pixels.
+    pub fn frame(&mut self, sculptor: &Sculptor, size_px: [f32; 2]) {
+        if let Some((lo, dims)) = sculptor.bounds() {
+            self.target = [0, 1, 2].map(|a| lo[a] as f32 + dims[a] as f32 / 2.0);
+            let diag = dims.iter().map(|&d| (d * d) as f32).sum::<f32>().sqrt();
+            self.pixels_per_voxel = 0.85 * size_px[0].min(size_px[1]) / diag.max(4.0);
+        }
+    }
+}
+
+/// One visible face: its cell, outward normal index into [`NORMALS`], four corners and depth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Face {
+    /// The solid cell it belongs to.
+    pub cell: [i64; 3],
+    /// Index into [`NORMALS`].
+    pub normal: usize,
+    /// Corners in world units, counter-clockwise seen from outside.
+    pub corners: [V3; 4],
+    /// Depth of the centre (for sorting).
+    pub depth: f32,
+}
+
+/// The exposed faces turned towards the camera, farthest first.
+pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
+    let (_, _, f) = camera.basis();
+    let n = sculptor.side() as i64;
+    let mut faces = Vec::new();
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let c = [x, y, z];
+                if !sculptor.get(c) {
+                    continue;
+                }
+                for (k, d) in NORMALS.iter().enumerate() {
+                    let nf = d.map(|v| v as f32);
+                    if dot(nf, f) >= 0.0 || sculptor.get([x + d[0], y + d[1], z + d[2]]) {
+                        continue;
+                    }
+                    let corners = face_corners(c, k);
+                    let centre = [0, 1, 2].map(|a| corners.iter().map(|p| p[a]).sum::<f32>() / 4.0);
+                    faces.push(Face {
+                        cell: c,
+                        normal: k,
+                        corners,
+                        depth: camera.project(centre).1,
+                    });
+                }
+            }
+        }
+    }
+    faces.sort_by(|a, b| b.depth.total_cmp(&a.depth));
+    faces
+}
+
+/// The four corners of face `k` of cell `c`.
+fn face_corners(c: [i64; 3], k: usize) -> [V3; 4] {
+    let axis = k / 2;
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let mut base = c.map(|v| v as f32);
+    if k % 2 == 1 {
+        base[axis] += 1.0;
+    }
+    let at = |du: f32, dv: f32| {
+        let mut p = base;
+        p[u] += du;
+        p[v] += dv;
+        p
+    };
+    [at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)]
+}
+
+/// Shade of a face with normal `k` under a light from the viewer's upper left, 0..1.
+pub fn shade(camera: &Camera, k: usize) -> f32 {
+    let (r, u, f) = camera.basis();
+    let light = [0, 1, 2].map(|a| -0.45 * r[a] + 0.6 * u[a] - 0.65 * f[a]);
+    let n = NORMALS[k].map(|v| v as f32);
+    0.35 + 0.65 * dot(n, light).max(0.0)
+}
+
+/// What a click hit: the solid cell, the face's normal index and the point on the face.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pick {
+    /// The solid cell.
+    pub cell: [i64; 3],
+    /// Index into [`NORMALS`] of the face the ray entered through.
+    pub normal: usize,
+    /// Where the ray meets the face, world units.
+    pub point: V3,
+}
+
+impl Pick {
+    /// The empty cell in front of the face (where an added voxel goes).
+    pub fn outside(&self) -> [i64; 3] {
+        let d = NORMALS[self.normal];
+        [0, 1, 2].map(|a| self.cell[a] + d[a])
+    }
+}
+
+/// The first solid cell along the ray through a screen offset (pixels from the view's centre,
+/// y down), by a voxel walk through the box.
+pub fn pick(sculptor: &Sculptor, camera: &Camera, offset: [f32; 2]) -> Option<Pick> {
+    let (o, d) = camera.ray(offset);
+    let n = sculptor.side() as f32;
+    // Clip the ray to the box [0, n]^3.
+    let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < 0.0 || o[a] > n {
+                return None;
+            }
+            continue;
+        }
+        let (ta, tb) = ((0.0 - o[a]) / d[a], (n - o[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let t_in = t0 + 1e-4;
+    let p = [0, 1, 2].map(|a| o[a] + t_in * d[a]);
+    let mut cell = p.map(|v| (v.floor() as i64).clamp(0, n as i64 - 1));
+    let step = d.map(|v| if v > 0.0 { 1i64 } else { -1 });
+    let mut t_max = [0.0f32; 3];
+    let mut t_delta = [f32::INFINITY; 3];
+    for a in 0..3 {
+        if d[a].abs() >= 1e-12 {
+            let next = if step[a] > 0 {
+                cell[a] as f32 + 1.0
+            } else {
+                cell[a] as f32
+            };
+            t_max[a] = (next - o[a]) / d[a];
+            t_delta[a] = 1.0 / d[a].abs();
+        } else {
+            t_max[a] = f32::INFINITY;
+        }
+    }
+    // The face the ray entered the box through.
+    let mut entered = (0..3)
+        .map(|a| {
+            let ta = if d[a].abs() < 1e-12 {
+                f32::NEG_INFINITY
+            } else {
+                ((if step[a] > 0 { 0.0 } else { n }) - o[a]) / d[a]
+            };
+            (ta, a)
+        })
+        .max_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(_, a)| a)
+        .unwrap_or(0);
+    let mut t_enter = t0;
+    loop {
+        if sculptor.get(cell) {
+            let normal = 2 * entered + usize::from(step[entered] < 0);
+            let point = [0, 1, 2].map(|a| o[a] + t_enter * d[a]);
+            return Some(Pick {
+                cell,
+                normal,
+                point,
+            });
+        }
+        let a = (0..3)
+            .min_by(|&x, &y| t_max[x].total_cmp(&t_max[y]))
+            .unwrap_or(0);
+        if t_max[a] > t1 {
+            return None;
+        }
+        t_enter = t_max[a];
+        cell[a] += step[a];
+        if !(0..n as i64).contains(&cell[a]) {
+            return None;
+        }
+        t_max[a] += t_delta[a];
+        entered = a;
+    }
+}
