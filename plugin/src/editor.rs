@@ -479,8 +479,8 @@ fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
 /// A labelled parameter slider.
 fn slider<P: Param>(ui: &mut egui::Ui, label: &str, param: &P, setter: &ParamSetter) {
     ui.horizontal(|ui| {
-        ui.add_sized([92.0, 18.0], egui::Label::new(label));
-        ui.add(ParamSlider::for_param(param, setter).with_width(150.0));
+        ui.add_sized([84.0, 18.0], egui::Label::new(label));
+        ui.add(ParamSlider::for_param(param, setter).with_width(120.0));
     });
 }
 
@@ -552,7 +552,7 @@ impl NiceEguiApp for EditorWindow {
                 spectrum_view::show(ui, &app.lines, 140.0);
             });
         egui::Panel::right("controls")
-            .exact_size(330.0)
+            .exact_size(300.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| controls(app, ui, &setter));
             });
@@ -646,7 +646,7 @@ fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
             app.redo();
         }
     });
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         egui::ComboBox::from_id_salt("primitive")
             .selected_text(PRIMITIVES[app.primitive])
             .show_ui(ui, |ui| {
@@ -654,7 +654,8 @@ fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
                     ui.selectable_value(&mut app.primitive, i, *name);
                 }
             });
-        ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"));
+        ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"))
+            .on_hover_text("longest side of the new shape, voxels");
         if ui.button("New").clicked() {
             let (spec, side) = (PRIMITIVES[app.primitive], app.primitive_side);
             app.edit(|s| s.load_primitive(spec, side));
@@ -666,7 +667,8 @@ fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
             app.edit(|s| s.hollow(w));
         }
         ui.separator();
-        ui.add(egui::Slider::new(&mut app.resample_side, 2..=32).suffix(" vox"));
+        ui.add(egui::Slider::new(&mut app.resample_side, 2..=32).suffix(" vox"))
+            .on_hover_text("resolution: the object's longest side, voxels");
         if ui.button("Resample").clicked() {
             let n = app.resample_side;
             app.edit(|s| s.resample(n));

@@ -77,7 +77,7 @@ impl KeyMap {
         let e = match *event {
             NoteEvent::NoteOn { key, velocity, .. } => {
                 let Key::Number(k) = key else { return };
-                self.strike(k, velocity as f64, params, engine)
+                Some(Self::strike(k, velocity as f64, params, engine))
             }
             NoteEvent::NoteOff { key, .. } if params.note_off_mute.value() => match key {
                 Key::Number(k) => Some(Event::Mute { key: k }),
@@ -101,13 +101,7 @@ impl KeyMap {
         }
     }
 
-    fn strike(
-        &self,
-        key: u8,
-        velocity: f64,
-        params: &ModalForgeParams,
-        engine: &AudioEngine,
-    ) -> Option<Event> {
+    fn strike(key: u8, velocity: f64, params: &ModalForgeParams, engine: &AudioEngine) -> Event {
         let v = velocity.clamp(0.0, 1.0);
         // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1).
         let base = engine.voicing().hardness_s;
@@ -123,7 +117,7 @@ impl KeyMap {
                 }),
             ),
         };
-        Some(Event::Strike {
+        Event::Strike {
             key: match params.mapping.value() {
                 KeyMapping::Pitch => key,
                 // One bank for all positions: strikes superpose on the object at its own size.
@@ -133,6 +127,6 @@ impl KeyMap {
             velocity: v,
             hit,
             hardness_s: Some(hardness.min(0.1)),
-        })
+        }
     }
 }

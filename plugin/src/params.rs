@@ -83,6 +83,11 @@ fn float(
         .with_value_to_string(formatters::v2s_f32_rounded(digits))
 }
 
+/// The range of a fraction, 0..1.
+fn unit_range() -> FloatRange {
+    FloatRange::Linear { min: 0.0, max: 1.0 }
+}
+
 /// A log-skewed range.
 fn skewed(min: f32, max: f32) -> FloatRange {
     FloatRange::Skewed {
@@ -205,36 +210,12 @@ impl Default for ModalForgeParams {
             alpha1: float("Alpha1", 5.0, skewed(0.0, 2000.0), " /s", 3),
             alpha2_us: float("Alpha2", 0.1, skewed(0.0, 50.0), " us", 4),
             mu1: float("Mu1", 5.0, skewed(0.0, 1000.0), "", 3),
-            mu2: float("Mu2", 0.2, FloatRange::Linear { min: 0.0, max: 1.0 }, "", 3),
+            mu2: float("Mu2", 0.2, unit_range(), "", 3),
             hardness_ms: float("Hardness", 0.5, skewed(0.0, 20.0), " ms", 3),
-            velocity_hardness: float(
-                "Vel > Hardness",
-                0.5,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-                "",
-                2,
-            ),
-            hit_x: float(
-                "Hit X",
-                0.37,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-                "",
-                3,
-            ),
-            hit_y: float(
-                "Hit Y",
-                0.41,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-                "",
-                3,
-            ),
-            hit_z: float(
-                "Hit Z",
-                1.0,
-                FloatRange::Linear { min: 0.0, max: 1.0 },
-                "",
-                3,
-            ),
+            velocity_hardness: float("Vel > Hardness", 0.5, unit_range(), "", 2),
+            hit_x: float("Hit X", 0.37, unit_range(), "", 3),
+            hit_y: float("Hit Y", 0.41, unit_range(), "", 3),
+            hit_z: float("Hit Z", 1.0, unit_range(), "", 3),
             force_normal: BoolParam::new("Force Normal", true),
             force_azimuth: float(
                 "Force Azimuth",

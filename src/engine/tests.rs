@@ -420,3 +420,19 @@ fn the_spectrum_view_lists_what_the_offline_voicing_plays() {
         assert!(line.t60_s() > 0.0);
     }
 }
+
+#[test]
+fn the_output_never_holds_subnormal_samples() {
+    // A strike at velocity 1e-37 rings at about 1e-38 and below, under f32's smallest normal
+    // (1.18e-38): every sample must be flushed to zero or be normal (CLAP validators reject
+    // subnormal output). The same strike at velocity 1 is audible, so the test is not empty.
+    let (mut audio, _control) = ready(EngineConfig::default(), steel(), bar(24));
+    let mut quiet = strike(1, 1.0);
+    if let Event::Strike { velocity, .. } = &mut quiet.event {
+        *velocity = 1e-37;
+    }
+    let out = render(&mut audio, 4800, &[quiet]);
+    assert!(out.iter().all(|x| *x == 0.0 || x.is_normal()));
+    let loud = render(&mut audio, 4800, &[strike(2, 1.0)]);
+    assert!(loud.iter().any(|x| x.abs() > 1e-6));
+}

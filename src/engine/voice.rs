@@ -43,6 +43,8 @@ pub(crate) struct Voice {
     next_modes: Vec<SlotMode>,
     tunings: Vec<Tuning>,
     pub amps: Vec<f64>,
+    /// Scratch for [`Self::strike`]: which struck modes are already ringing.
+    matched: Vec<bool>,
 }
 
 impl Voice {
@@ -59,6 +61,7 @@ impl Voice {
             next_modes: Vec::with_capacity(capacity),
             tunings: Vec::with_capacity(capacity),
             amps: vec![0.0; capacity],
+            matched: vec![false; capacity],
         }
     }
 
@@ -82,11 +85,7 @@ impl Voice {
     /// longer ring (above Nyquist, overdamped) are dropped.
     pub fn revoice(&mut self, voicing: &Voicing) {
         let h = voicing.voxel_size_m(1, self.pitch);
-        let extra = if self.muted {
-            voicing.mute_decay_per_s
-        } else {
-            0.0
-        };
+        let extra = self.extra_decay(voicing);
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();
         self.tunings.clear();
@@ -136,8 +135,19 @@ impl Voice {
         self.bank.amplitudes(&mut self.amps[..n]);
     }
 
-    /// Strikes: `struck` lists the struck object's modes worth playing (in its mode order); ringing modes carry on, new ones join, up to capacity.
+    /// Decay added to every mode of this voice: the mute decay once muted.
+    fn extra_decay(&self, voicing: &Voicing) -> f64 {
+        if self.muted {
+            voicing.mute_decay_per_s
+        } else {
+            0.0
+        }
+    }
+
+    /// Strikes: `struck` lists one object's modes worth playing, in ascending mode index, at
+    /// most [`Self::capacity`] of them; ringing modes carry on, new ones join, up to capacity.
     /// `gains` receives the per-mode gains in the new bank order (scratch owned by the caller).
+    /// Matching ringing and struck modes is a binary search: O(n log n) per strike.
     pub fn strike(
         &mut self,
         struck: &[SlotMode],
@@ -150,11 +160,19 @@ impl Voice {
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();
         self.tunings.clear();
+        let struck = &struck[..struck.len().min(self.matched.len())];
+        let matched = &mut self.matched[..struck.len()];
+        matched.fill(false);
+        let generation = struck.first().map(|s| s.generation);
         // Ringing modes first (they keep their slots' phase), then the struck ones not ringing.
         for (j, m) in self.modes.iter().enumerate() {
-            let again = struck
-                .iter()
-                .find(|s| s.generation == m.generation && s.index == m.index);
+            let k = (generation == Some(m.generation))
+                .then(|| struck.binary_search_by_key(&m.index, |s| s.index).ok())
+                .flatten();
+            if let Some(k) = k {
+                matched[k] = true;
+            }
+            let again = k.map(|k| &struck[k]);
             let (f, d) = self.bank.tuning(j);
             let gain = again.map_or(0.0, |s| s.gain);
             self.next_modes.push(SlotMode {
@@ -168,19 +186,11 @@ impl Voice {
                 from: Some(j),
             });
         }
-        let extra = if self.muted {
-            voicing.mute_decay_per_s
-        } else {
-            0.0
-        };
-        for s in struck {
+        let extra = self.extra_decay(voicing);
+        for (s, &ringing) in struck.iter().zip(self.matched.iter()) {
             if self.next_modes.len() == self.capacity() {
                 break;
             }
-            let ringing = self
-                .modes
-                .iter()
-                .any(|m| m.generation == s.generation && m.index == s.index);
             if ringing {
                 continue;
             }

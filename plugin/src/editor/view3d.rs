@@ -109,7 +109,10 @@ impl Camera {
     }
 }
 
-/// One visible face: its cell, outward normal index into [`NORMALS`], four corners and depth.
+/// One visible face: its cell, outward normal index into [`NORMALS`], four corners and the
+/// depth of its cell's centre. Equal cubes on a grid seen orthographically are painted
+/// correctly back to front by their centres' depth (a nearer cube can never be overlapped by a
+/// farther one), which face centres would not guarantee.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Face {
     /// The solid cell it belongs to.
@@ -118,7 +121,7 @@ pub struct Face {
     pub normal: usize,
     /// Corners in world units, counter-clockwise seen from outside.
     pub corners: [V3; 4],
-    /// Depth of the centre (for sorting).
+    /// Depth of the cell's centre (for sorting).
     pub depth: f32,
 }
 
@@ -134,18 +137,18 @@ pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
                 if !sculptor.get(c) {
                     continue;
                 }
+                let centre = c.map(|v| v as f32 + 0.5);
+                let cell_depth = camera.project(centre).1;
                 for (k, d) in NORMALS.iter().enumerate() {
                     let nf = d.map(|v| v as f32);
                     if dot(nf, f) >= 0.0 || sculptor.get([x + d[0], y + d[1], z + d[2]]) {
                         continue;
                     }
-                    let corners = face_corners(c, k);
-                    let centre = [0, 1, 2].map(|a| corners.iter().map(|p| p[a]).sum::<f32>() / 4.0);
                     faces.push(Face {
                         cell: c,
                         normal: k,
-                        corners,
-                        depth: camera.project(centre).1,
+                        corners: face_corners(c, k),
+                        depth: cell_depth,
                     });
                 }
             }
