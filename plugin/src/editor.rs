@@ -12,6 +12,7 @@
 //! The window's logic lives in [`EditorApp`] methods that take no egui context
 //! ([`EditorApp::click`], [`EditorApp::undo`], ...) so tests drive it without a window.
 
+mod layout;
 pub mod sculptor;
 pub mod spectrum_view;
 pub mod view3d;
@@ -20,12 +21,11 @@ use crate::materials::{MaterialChoice, MaterialTable};
 use crate::params::ModalForgeParams;
 use crate::presets::Preset;
 use crate::sculpt::Sculpt;
-use egui::{Color32, Pos2, Sense, Stroke, Vec2};
+use egui::Color32;
 use modalforge::engine::spectrum::{spectrum, SpectrumLine};
 use modalforge::engine::{EngineControl, SolveState, Voicing};
 use nice_plug::context::gui::GuiContext;
 use nice_plug::prelude::*;
-use nice_plug_egui::widgets::ParamSlider;
 use nice_plug_egui::{EguiEditorState, NiceEguiApp};
 use sculptor::Sculptor;
 use std::path::Path;
@@ -451,39 +451,6 @@ fn default_dir() -> String {
     format!("{home}/ModalForge/object.vox")
 }
 
-/// A combo box for an enum parameter, set through the host.
-fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
-    ui: &mut egui::Ui,
-    label: &str,
-    param: &EnumParam<T>,
-    setter: &ParamSetter,
-) {
-    ui.horizontal(|ui| {
-        ui.label(label);
-        let current = param.value();
-        egui::ComboBox::from_id_salt(label)
-            .selected_text(T::variants()[current.to_index()])
-            .show_ui(ui, |ui| {
-                for (i, name) in T::variants().iter().enumerate() {
-                    let v = T::from_index(i);
-                    if ui.selectable_label(v == current, *name).clicked() {
-                        setter.begin_set_parameter(param);
-                        setter.set_parameter(param, v);
-                        setter.end_set_parameter(param);
-                    }
-                }
-            });
-    });
-}
-
-/// A labelled parameter slider.
-fn slider<P: Param>(ui: &mut egui::Ui, label: &str, param: &P, setter: &ParamSetter) {
-    ui.horizontal(|ui| {
-        ui.add_sized([84.0, 18.0], egui::Label::new(label));
-        ui.add(ParamSlider::for_param(param, setter).with_width(120.0));
-    });
-}
-
 /// The editor as nice-plug-egui runs it (the GUI context gives the parameter setter).
 pub struct EditorWindow {
     app: EditorApp,
@@ -536,7 +503,7 @@ impl NiceEguiApp for EditorWindow {
         ui.ctx()
             .request_repaint_after(std::time::Duration::from_millis(100));
 
-        egui::Panel::top("files").show(ui, |ui| top_bar(app, ui, &setter));
+        egui::Panel::top("files").show(ui, |ui| layout::top_bar(app, ui, &setter));
         egui::Panel::bottom("spectrum")
             .exact_size(170.0)
             .show(ui, |ui| {
@@ -554,279 +521,17 @@ impl NiceEguiApp for EditorWindow {
         egui::Panel::right("controls")
             .exact_size(300.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| controls(app, ui, &setter));
+                egui::ScrollArea::vertical().show(ui, |ui| layout::controls(app, ui, &setter));
             });
         egui::CentralPanel::default_margins().show(ui, |ui| {
-            sculpt_bar(app, ui);
-            view(app, ui, &setter);
+            layout::sculpt_bar(app, ui);
+            layout::view(app, ui, &setter);
         });
     }
 
     fn editor_closed(&mut self) {
         self.gui = None;
     }
-}
-
-fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
-    ui.horizontal(|ui| {
-        ui.strong("ModalForge");
-        ui.separator();
-        let mut chosen = None;
-        egui::ComboBox::from_id_salt("preset")
-            .selected_text("Presets")
-            .show_ui(ui, |ui| {
-                for (i, p) in app.presets.iter().enumerate() {
-                    if ui
-                        .selectable_label(false, &p.name)
-                        .on_hover_text(&p.description)
-                        .clicked()
-                    {
-                        chosen = Some(i);
-                    }
-                }
-            });
-        if let Some(i) = chosen {
-            let p = app.presets[i].clone();
-            app.apply_preset(&p, setter);
-        }
-        ui.separator();
-        ui.label("File");
-        ui.add(egui::TextEdit::singleline(&mut app.path).desired_width(260.0));
-        if ui.button("Load .vox").clicked() {
-            app.load_vox();
-        }
-        if ui.button("Save .vox").clicked() {
-            app.save_vox();
-        }
-        if ui.button("Load preset").clicked() {
-            match app.read_preset() {
-                Ok(p) => app.apply_preset(&p, setter),
-                Err(e) => app.message = Some((e, true)),
-            }
-        }
-        if ui.button("Save preset").clicked() {
-            app.save_preset();
-        }
-    });
-    if let Some((m, error)) = &app.message {
-        let colour = if *error {
-            Color32::from_rgb(240, 110, 90)
-        } else {
-            Color32::from_gray(180)
-        };
-        ui.colored_label(colour, m);
-    }
-}
-
-fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
-    ui.horizontal(|ui| {
-        ui.selectable_value(&mut app.tool, Tool::Add, "Add");
-        ui.selectable_value(&mut app.tool, Tool::Remove, "Remove");
-        ui.selectable_value(&mut app.tool, Tool::Hit, "Hit");
-        ui.separator();
-        ui.label("Brush");
-        ui.add(egui::Slider::new(&mut app.sculptor.brush_radius, 0..=4));
-        ui.label("Mirror");
-        for (a, name) in ["X", "Y", "Z"].iter().enumerate() {
-            ui.checkbox(&mut app.sculptor.mirror[a], *name);
-        }
-        ui.separator();
-        let undo = ui.add_enabled(app.sculptor.undo_depth() > 0, egui::Button::new("Undo"));
-        let redo = ui.add_enabled(app.sculptor.redo_depth() > 0, egui::Button::new("Redo"));
-        let (z, shift) = ui.input(|i| {
-            (
-                i.modifiers.command && i.key_pressed(egui::Key::Z),
-                i.modifiers.shift,
-            )
-        });
-        if undo.clicked() || (z && !shift) {
-            app.undo();
-        }
-        if redo.clicked() || (z && shift) {
-            app.redo();
-        }
-    });
-    ui.horizontal_wrapped(|ui| {
-        egui::ComboBox::from_id_salt("primitive")
-            .selected_text(PRIMITIVES[app.primitive])
-            .show_ui(ui, |ui| {
-                for (i, name) in PRIMITIVES.iter().enumerate() {
-                    ui.selectable_value(&mut app.primitive, i, *name);
-                }
-            });
-        ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"))
-            .on_hover_text("longest side of the new shape, voxels");
-        if ui.button("New").clicked() {
-            let (spec, side) = (PRIMITIVES[app.primitive], app.primitive_side);
-            app.edit(|s| s.load_primitive(spec, side));
-        }
-        ui.separator();
-        ui.add(egui::Slider::new(&mut app.hollow_wall, 1..=4).suffix(" wall"));
-        if ui.button("Hollow").clicked() {
-            let w = app.hollow_wall;
-            app.edit(|s| s.hollow(w));
-        }
-        ui.separator();
-        ui.add(egui::Slider::new(&mut app.resample_side, 2..=32).suffix(" vox"))
-            .on_hover_text("resolution: the object's longest side, voxels");
-        if ui.button("Resample").clicked() {
-            let n = app.resample_side;
-            app.edit(|s| s.resample(n));
-        }
-    });
-}
-
-fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
-    let size = ui.available_size();
-    let (response, painter) = ui.allocate_painter(size, Sense::click_and_drag());
-    let rect = response.rect;
-    if !app.framed {
-        app.camera
-            .frame(&app.sculptor, [rect.width(), rect.height()]);
-        app.framed = true;
-    }
-    if response.dragged() {
-        let d = response.drag_delta();
-        app.camera.orbit([d.x, d.y]);
-    }
-    if response.hovered() {
-        let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-        if scroll != 0.0 {
-            app.camera.pixels_per_voxel =
-                (app.camera.pixels_per_voxel * (scroll * 0.002).exp()).clamp(1.0, 200.0);
-        }
-    }
-    let centre = rect.center();
-    if response.clicked() {
-        if let Some(p) = response.interact_pointer_pos() {
-            if let Some(hit) = app.click([p.x - centre.x, p.y - centre.y]) {
-                let params = app.params.clone();
-                for (param, v) in [&params.hit_x, &params.hit_y, &params.hit_z]
-                    .into_iter()
-                    .zip(hit.fractions)
-                {
-                    setter.begin_set_parameter(param);
-                    setter.set_parameter(param, v);
-                    setter.end_set_parameter(param);
-                }
-            }
-        }
-    }
-    painter.rect_filled(rect, 0.0, Color32::from_gray(28));
-    let base = material_colour(app.params.material.value());
-    let mut mesh = egui::Mesh::default();
-    let faces = view3d::visible_faces(&app.sculptor, &app.camera);
-    for f in &faces {
-        let s = view3d::shade(&app.camera, f.normal);
-        let parity = ((f.cell[0] + f.cell[1] + f.cell[2]) & 1) as f32 * 0.06;
-        let k = (s - parity).clamp(0.0, 1.0);
-        let c = Color32::from_rgb(
-            (base[0] as f32 * k) as u8,
-            (base[1] as f32 * k) as u8,
-            (base[2] as f32 * k) as u8,
-        );
-        let i0 = mesh.vertices.len() as u32;
-        for corner in f.corners {
-            let (p, _) = app.camera.project(corner);
-            mesh.colored_vertex(Pos2::new(centre.x + p[0], centre.y + p[1]), c);
-        }
-        mesh.add_triangle(i0, i0 + 1, i0 + 2);
-        mesh.add_triangle(i0, i0 + 2, i0 + 3);
-    }
-    painter.add(egui::Shape::mesh(mesh));
-    if let Some(h) = app.hit_point() {
-        let (p, _) = app.camera.project(h);
-        let at = Pos2::new(centre.x + p[0], centre.y + p[1]);
-        painter.circle_stroke(at, 7.0, Stroke::new(2.0, Color32::from_rgb(255, 60, 60)));
-        painter.circle_filled(at, 2.5, Color32::from_rgb(255, 60, 60));
-    }
-    let dims = app.sculptor.bounds().map(|(_, d)| d).unwrap_or([0; 3]);
-    painter.text(
-        rect.left_bottom() + Vec2::new(6.0, -6.0),
-        egui::Align2::LEFT_BOTTOM,
-        format!(
-            "{} x {} x {} voxels ({} solid) · drag: rotate · wheel: zoom · click: {}",
-            dims[0],
-            dims[1],
-            dims[2],
-            app.sculptor.count(),
-            match app.tool {
-                Tool::Add => "add",
-                Tool::Remove => "remove",
-                Tool::Hit => "set the hit point and strike",
-            }
-        ),
-        egui::FontId::proportional(11.0),
-        Color32::from_gray(170),
-    );
-}
-
-/// The view's base colour for a material.
-fn material_colour(m: MaterialChoice) -> [u8; 3] {
-    use MaterialChoice::*;
-    match m {
-        Glass => [150, 200, 225],
-        Wood | SlWood => [190, 140, 90],
-        Ceramic | SlPorcelain => [235, 230, 215],
-        Brass => [215, 180, 90],
-        Plastic | SlPlastic1 | SlPlastic2 | Polycarbonate => [110, 170, 120],
-        Steel | Iron | Tin => [180, 185, 195],
-        Aluminium | SlAluminum => [200, 205, 210],
-        Custom => [200, 160, 200],
-    }
-}
-
-fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
-    let p = app.params.clone();
-    ui.heading("Material");
-    enum_combo(ui, "Material", &p.material, setter);
-    if p.material.value() == MaterialChoice::Custom {
-        slider(ui, "E", &p.youngs_gpa, setter);
-        slider(ui, "Density", &p.density, setter);
-        slider(ui, "Poisson", &p.poisson, setter);
-    }
-    slider(ui, "Size", &p.size_m, setter);
-    ui.separator();
-    ui.heading("Damping");
-    enum_combo(ui, "Law", &p.damping, setter);
-    match p.damping.value() {
-        crate::params::DampingChoice::Material => {}
-        crate::params::DampingChoice::Rayleigh => {
-            slider(ui, "Alpha1", &p.alpha1, setter);
-            slider(ui, "Alpha2", &p.alpha2_us, setter);
-        }
-        crate::params::DampingChoice::PowerLaw => {
-            slider(ui, "Mu1", &p.mu1, setter);
-            slider(ui, "Mu2", &p.mu2, setter);
-        }
-    }
-    ui.separator();
-    ui.heading("Strike");
-    slider(ui, "Hardness", &p.hardness_ms, setter);
-    slider(ui, "Vel > Hard", &p.velocity_hardness, setter);
-    slider(ui, "Hit X", &p.hit_x, setter);
-    slider(ui, "Hit Y", &p.hit_y, setter);
-    slider(ui, "Hit Z", &p.hit_z, setter);
-    slider(ui, "Normal", &p.force_normal, setter);
-    if !p.force_normal.value() {
-        slider(ui, "Azimuth", &p.force_azimuth, setter);
-        slider(ui, "Elevation", &p.force_elevation, setter);
-    }
-    if ui.button("Strike").clicked() {
-        app.link.audition.fetch_add(1, Ordering::Relaxed);
-    }
-    ui.separator();
-    ui.heading("Play");
-    enum_combo(ui, "Keys", &p.mapping, setter);
-    slider(ui, "Note-off mute", &p.note_off_mute, setter);
-    slider(ui, "Mute decay", &p.mute_decay, setter);
-    slider(ui, "Gain", &p.gain_db, setter);
-    slider(ui, "Mode budget", &p.mode_budget, setter);
-    ui.separator();
-    ui.heading("Solver");
-    enum_combo(ui, "Solver", &p.solver, setter);
-    enum_combo(ui, "Element", &p.element, setter);
-    slider(ui, "Modes", &p.modes, setter);
 }
 
 #[cfg(test)]
