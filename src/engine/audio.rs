@@ -244,7 +244,6 @@ impl AudioEngine {
             return;
         }
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let phi_scale = 1.0 / (self.voicing.density_kg_m3 * h * h * h).sqrt();
         let sum: f64 = obj
             .basis
             .solution
@@ -253,7 +252,7 @@ impl AudioEngine {
             .zip(&obj.forces)
             .filter_map(|(&l, &force)| {
                 let (f, _) = tune(&self.voicing, l, h, 0.0, self.sample_rate_hz)?;
-                Some((force * phi_scale / (std::f64::consts::TAU * f)).abs())
+                Some(self.voicing.modal_gain(force, h, f).abs())
             })
             .sum();
         if sum.is_finite() && sum > 0.0 {
@@ -343,7 +342,6 @@ impl AudioEngine {
         voice.muted = false;
         // The modes this strike excites, with their gains (seed 000 eq. 7).
         let h = self.voicing.voxel_size_m(obj.extent, pitch);
-        let phi_scale = 1.0 / (self.voicing.density_kg_m3 * h * h * h).sqrt();
         self.struck.clear();
         let mut loudest: f64 = 0.0;
         for (i, &lambda) in obj.basis.solution.eigenvalues.iter().enumerate() {
@@ -353,7 +351,7 @@ impl AudioEngine {
             let Some((f, d)) = tune(&self.voicing, lambda, h, 0.0, self.sample_rate_hz) else {
                 continue;
             };
-            let gain = obj.forces[i] * phi_scale / (std::f64::consts::TAU * f);
+            let gain = self.voicing.modal_gain(obj.forces[i], h, f);
             let l = num_complex::Complex64::new(-d, std::f64::consts::TAU * f);
             let level = (gain * velocity * excitation.modal_factor(l).norm()).abs();
             if !level.is_finite() {

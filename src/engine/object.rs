@@ -6,7 +6,7 @@
 //! freed on the worker.
 
 use super::voicing::HitPoint;
-use crate::modal::{Hit, HitError, ModeBasis};
+use crate::modal::{HitError, ModeBasis};
 use std::sync::Arc;
 
 /// A shape's modes ready to be struck.
@@ -60,12 +60,7 @@ impl SolvedObject {
             return Ok(());
         }
         // Reference units: voxel edge 1, so the point is the fraction times the grid's extent.
-        let dims = self.basis.grid_dims();
-        let point_m = [0, 1, 2].map(|a| hit.position[a] * dims[a] as f64);
-        let h = Hit {
-            point_m,
-            direction: hit.direction,
-        };
+        let h = hit.reference_hit(self.basis.grid_dims());
         self.forces_hit = None;
         self.basis
             .reference_forces_into(&h, 1.0, &mut self.forces)?;

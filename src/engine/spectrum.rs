@@ -9,7 +9,7 @@
 //! own size plays.
 
 use super::voicing::{tune, Voicing};
-use crate::modal::{Hit, HitError, ModeBasis};
+use crate::modal::{HitError, ModeBasis};
 use crate::synth::excitation::Excitation;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
@@ -44,10 +44,7 @@ pub fn spectrum(
 ) -> Result<Vec<SpectrumLine>, HitError> {
     let dims = basis.grid_dims();
     let extent = dims.into_iter().max().unwrap_or(1);
-    let hit = Hit {
-        point_m: [0, 1, 2].map(|a| voicing.hit.position[a] * dims[a] as f64),
-        direction: voicing.hit.direction,
-    };
+    let hit = voicing.hit.reference_hit(dims);
     let mut forces = vec![0.0; basis.mode_count()];
     basis.reference_forces_into(&hit, 1.0, &mut forces)?;
     let excitation = if voicing.hardness_s > 0.0 {
@@ -56,7 +53,6 @@ pub fn spectrum(
         Excitation::Impulse
     };
     let h = voicing.voxel_size_m(extent, 1.0);
-    let phi_scale = 1.0 / (voicing.density_kg_m3 * h * h * h).sqrt();
     Ok(basis
         .solution
         .eigenvalues
@@ -65,7 +61,7 @@ pub fn spectrum(
         .enumerate()
         .filter_map(|(index, (&lambda, &force))| {
             let (freq_hz, decay_per_s) = tune(voicing, lambda, h, 0.0, sample_rate_hz)?;
-            let gain = force * phi_scale / (TAU * freq_hz);
+            let gain = voicing.modal_gain(force, h, freq_hz);
             let factor = excitation.modal_factor(Complex64::new(-decay_per_s, TAU * freq_hz));
             let amplitude = (gain * factor.norm()).abs();
             amplitude.is_finite().then_some(SpectrumLine {

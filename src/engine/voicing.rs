@@ -109,6 +109,16 @@ pub struct HitPoint {
     pub direction: Option<[f64; 3]>,
 }
 
+impl HitPoint {
+    /// The hit in reference units (voxel edge 1) on a grid of `dims` voxels.
+    pub fn reference_hit(&self, dims: [usize; 3]) -> crate::modal::Hit {
+        crate::modal::Hit {
+            point_m: [0, 1, 2].map(|a| self.position[a] * dims[a] as f64),
+            direction: self.direction,
+        }
+    }
+}
+
 impl Default for HitPoint {
     /// The CLI's default hit: top face, off-centre (see [`crate::modal::ModeBasis::default_hit`]).
     fn default() -> Self {
@@ -220,6 +230,13 @@ impl Voicing {
     /// higher than the object's own size (a smaller object: `h / pitch`).
     pub fn voxel_size_m(&self, extent: usize, pitch: f64) -> f64 {
         self.size_m / extent.max(1) as f64 / pitch
+    }
+
+    /// Gain of a mode struck with unit impulse (seed 000 eq. 7): its reference-unit modal
+    /// force made physical (`1 / sqrt(rho h^3)`) over its damped angular frequency.
+    pub fn modal_gain(&self, reference_force: f64, voxel_size_m: f64, freq_hz: f64) -> f64 {
+        let h = voxel_size_m;
+        reference_force / ((self.density_kg_m3 * h * h * h).sqrt() * TAU * freq_hz)
     }
 
     /// Frequency scale `E / (rho h^2)` from reference eigenvalues to `omega^2` (seed 000 eq. 12).
