@@ -93,11 +93,12 @@ pub struct EditorApp {
     path: String,
     message: Option<(String, bool)>,
     presets: Vec<Preset>,
-    spectrum_key: Option<(u64, [u64; 8])>,
+    /// The object generation and voicing the spectrum lines were computed for.
+    spectrum_key: Option<(u64, Voicing)>,
     lines: Vec<SpectrumLine>,
 }
 
-/// A hit the editor set: the parameter values and whether a strike was queued.
+/// A hit point the editor picked (the caller sets it as the Hit X/Y/Z parameters).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HitSet {
     /// Hit point as fractions of the object's extent (the Hit X/Y/Z parameters).
@@ -259,7 +260,7 @@ impl EditorApp {
             return;
         };
         let voicing = self.params.voicing(&self.table, 1.0, 1.0);
-        let key = (latest.generation, voicing_key(&voicing));
+        let key = (latest.generation, voicing);
         if self.spectrum_key == Some(key) {
             return;
         }
@@ -419,30 +420,6 @@ impl EditorApp {
         set_f(&p.hit_z, preset.hit[2]);
         self.message = Some((format!("{}: {}", preset.name, preset.description), false));
     }
-}
-
-/// Bits of the voicing fields the spectrum depends on.
-fn voicing_key(v: &Voicing) -> [u64; 8] {
-    let d = match v.damping {
-        modalforge::engine::DampingParams::Rayleigh { alpha1, alpha2 } => alpha1 + 7.0 * alpha2,
-        modalforge::engine::DampingParams::PowerLaw { mu1, mu2 } => mu1 + 11.0 * mu2,
-        modalforge::engine::DampingParams::Caughey { eta, .. } => eta.iter().sum(),
-    };
-    let dir = v
-        .hit
-        .direction
-        .map_or(0.0, |d| d[0] + 3.0 * d[1] + 5.0 * d[2]);
-    [
-        v.youngs_modulus_pa,
-        v.density_kg_m3,
-        v.size_m,
-        d,
-        v.hit.position[0] + 3.0 * v.hit.position[1] + 9.0 * v.hit.position[2],
-        dir,
-        v.hardness_s,
-        0.0,
-    ]
-    .map(f64::to_bits)
 }
 
 /// Where file paths start: `~/ModalForge/object.vox`.
