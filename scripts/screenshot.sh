@@ -7,14 +7,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-docs/editor.png}"
-need=()
-for p in xvfb x11-apps netpbm libasound2-dev libjack-jackd2-dev; do
-  dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
-done
-if ((${#need[@]})); then
-  sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq && $sudo apt-get install -y -qq "${need[@]}"
-fi
+source scripts/apt-need.sh
+apt_need xvfb x11-apps netpbm libasound2-dev libjack-jackd2-dev
 cargo build --locked --release -p modalforge-standalone
 display=":$((90 + RANDOM % 100))"
 Xvfb "$display" -screen 0 1100x760x24 >/dev/null 2>&1 &

@@ -6,13 +6,7 @@
 # packages it links against when they are missing (apt, as root or through sudo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-need=()
-for p in libasound2-dev libjack-jackd2-dev; do
-  dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
-done
-if ((${#need[@]})); then
-  sudo=""; [ "$(id -u)" = 0 ] || sudo="sudo"
-  $sudo apt-get update -qq && $sudo apt-get install -y -qq "${need[@]}"
-fi
+source scripts/apt-need.sh
+apt_need libasound2-dev libjack-jackd2-dev
 cargo build --locked --release -p modalforge-standalone
 exec target/release/modalforge-standalone "$@"
