@@ -4,8 +4,9 @@
 //! modes. Two solvers share one contract ([`EigenOptions`] in, [`EigenSolution`] or a typed
 //! [`EigenError`] out): shift-invert block Lanczos on a sparse Cholesky factorisation
 //! ([`lanczos`]), and LOBPCG ([`lobpcg`], seed 001 sec. 4.2.4) preconditioned by geometric
-//! multigrid on the voxel grid ([`multigrid`]); LOBPCG is not written yet (a named stub that
-//! answers with an error). Both stop on the residual criterion of
+//! multigrid on the voxel grid ([`multigrid`]); and, for sculpting edits, LOBPCG with the exact
+//! shift-invert preconditioner from the previous shape's modes ([`warm`]). All stop on the
+//! residual criterion of
 //! NeuralSound (seed 001 eq. 6, left term) and report it per mode:
 //! `||K v - lambda M v|| / ((||K|| + |lambda| ||M||) ||v||)`, with the matrix 2-norms bounded by
 //! their infinity norms (symmetric matrices), which makes the test slightly stricter.
@@ -19,10 +20,20 @@ pub mod factor;
 pub mod lanczos;
 pub mod lobpcg;
 pub mod multigrid;
+pub mod warm;
 
 use crate::fem::sparse::{self, BlockPattern};
 use crate::fem::FemModel;
-use faer::Mat;
+use faer::{Mat, MatRef};
+
+/// Which of the two matrices a product uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Which {
+    /// The stiffness `K`.
+    K,
+    /// The mass `M`.
+    M,
+}
 
 /// Eigenvalues below this fraction of `trace K / trace M` are rigid-body modes. A shift-invert
 /// solve returns them at ~1e-16 of that scale; the softest real mode of a 256-voxel-long bar sits
@@ -144,6 +155,18 @@ pub struct EigenSolution {
     pub iterations: usize,
     /// The solver that produced it (LOBPCG hands tiny models to Lanczos).
     pub solver: SolverKind,
+    /// Whether it was refined from a previous shape's modes ([`warm`]) rather than solved
+    /// from scratch.
+    pub warm_start: bool,
+    /// The solver's next Ritz vectors above the returned modes (not converged; may be empty):
+    /// a warm start of the next edit starts its guard columns from them ([`warm`]), so the
+    /// highest wanted modes converge as fast as the lowest.
+    pub guard_vectors: Mat<f64>,
+}
+
+/// Guard vectors a solution keeps for warm starts, for `need` wanted pairs (rigid included).
+pub fn warm_guard(need: usize) -> usize {
+    (need / 2).max(8)
 }
 
 /// Why a solve failed.
@@ -248,6 +271,45 @@ impl<'a> Operators<'a> {
             .sqrt();
         let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
         r / ((self.k_norm + lambda.abs() * self.m_norm) * xn)
+    }
+
+    /// `K X` (`Which::K`) or `M X` for a column-major block, through one block SpMM (one pass
+    /// over the matrix serves every column).
+    pub fn apply_block(&self, which: Which, x: MatRef<'_, f64>) -> Mat<f64> {
+        let (n, w) = (x.nrows(), x.ncols());
+        if w == 0 {
+            return Mat::zeros(n, 0);
+        }
+        let mut rows = vec![0.0; n * w];
+        for j in 0..w {
+            for (i, v) in x.col(j).iter().enumerate() {
+                rows[i * w + j] = *v;
+            }
+        }
+        let mut out = vec![0.0; n * w];
+        let a = match which {
+            Which::K => self.k,
+            Which::M => self.m,
+        };
+        sparse::spmm(self.pattern, a, &rows, &mut out, sparse::RowBlock::dense(w));
+        Mat::from_fn(n, w, |i, j| out[i * w + j])
+    }
+
+    /// Residuals (seed 001 eq. 6) of the pairs `(lambdas[j], x[:, j])`, by block products.
+    pub fn block_residuals(&self, lambdas: &[f64], x: MatRef<'_, f64>) -> Vec<f64> {
+        let kx = self.apply_block(Which::K, x);
+        let mx = self.apply_block(Which::M, x);
+        (0..x.ncols())
+            .map(|j| {
+                let (mut r2, mut x2) = (0.0, 0.0);
+                for i in 0..x.nrows() {
+                    let r = kx[(i, j)] - lambdas[j] * mx[(i, j)];
+                    r2 += r * r;
+                    x2 += x[(i, j)] * x[(i, j)];
+                }
+                r2.sqrt() / ((self.k_norm + lambdas[j].abs() * self.m_norm) * x2.sqrt())
+            })
+            .collect()
     }
 
     /// Whether an eigenvalue is a rigid-body (zero-frequency) mode.
@@ -367,7 +429,14 @@ pub(crate) fn solution(
     solver: SolverKind,
 ) -> EigenSolution {
     let keep = &selection.keep;
+    // Guards: the columns after the last kept pair's, at most `warm_guard` of them.
+    let after = keep.iter().map(|&i| pairs[i].1 + 1).max().unwrap_or(0);
+    let guards = x
+        .ncols()
+        .saturating_sub(after)
+        .min(warm_guard(selection.rigid + keep.len()));
     EigenSolution {
+        guard_vectors: x.get(.., after..after + guards).to_owned(),
         eigenvalues: keep.iter().map(|&i| pairs[i].0).collect(),
         vectors: Mat::from_fn(x.nrows(), keep.len(), |i, j| x[(i, pairs[keep[j]].1)]),
         residuals: keep.iter().map(|&i| pairs[i].2).collect(),
@@ -375,6 +444,7 @@ pub(crate) fn solution(
         timings,
         iterations,
         solver,
+        warm_start: false,
     }
 }
 

@@ -21,6 +21,7 @@
 
 mod audio;
 mod object;
+mod solvers;
 pub mod spectrum;
 mod voice;
 pub mod voicing;
@@ -28,6 +29,10 @@ mod worker;
 
 pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::SolvedObject;
+pub use solvers::{
+    coarse_grid, interactive_solvers, predicted_cold_ms, CarriedRitzSolver, CoarseFemSolver,
+    IncrementalFemSolver, CARRIED_EXPECTED_ERROR, COARSE_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS,
+};
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{
     EngineControl, FemSolver, LatestObject, ModeSolver, ObjectRequest, RequestSource, SolveReport,

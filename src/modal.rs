@@ -30,6 +30,11 @@ struct FaceWeights {
     normal: [f64; 3],
 }
 
+/// Share of voxels two shapes must have in common (after alignment) for
+/// [`ModeBasis::solve_warm`] to start from the earlier one's modes. A sculpting stroke
+/// changes a few percent; loading another preset changes most.
+pub const WARM_MIN_OVERLAP: f64 = 0.9;
+
 /// What is wrong with a hit (a `Copy` error, so the audio thread can handle it without
 /// allocating).
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
@@ -119,6 +124,13 @@ pub enum ModalError {
     /// Bad strike.
     #[error("{0}")]
     BadHit(String),
+    /// A progressive coarse answer was asked of an object that halving its resolution would
+    /// change too much (walls one voxel thick).
+    #[error("the object does not survive halving its resolution; wait for the exact answer")]
+    NoCoarseGrid,
+    /// An answer that refines an earlier one was asked for with no comparable earlier one.
+    #[error("no earlier solution of a similar shape to start from")]
+    NoPrevious,
 }
 
 /// A strike: where and in which direction.
@@ -156,7 +168,79 @@ impl ModeBasis {
         let model = FemModel::assemble(grid, element, poisson_ratio)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
         let solution = eigen::solve(&model, solver, options)?;
-        Ok(ModeBasis {
+        Ok(Self::from_parts(grid, model, solution, assemble_ms))
+    }
+
+    /// Like [`ModeBasis::solve`], refined from `previous` (an earlier edit of the same object)
+    /// when the two shapes share at least [`WARM_MIN_OVERLAP`] of their voxels, the element and
+    /// Poisson's ratio ([`eigen::warm`]); solved cold otherwise. The result says which
+    /// (`solution.warm_start`).
+    pub fn solve_warm(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        solver: SolverKind,
+        options: &EigenOptions,
+        previous: &ModeBasis,
+    ) -> Result<Self, ModalError> {
+        let t = std::time::Instant::now();
+        let model = FemModel::assemble(grid, element, poisson_ratio)?;
+        let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
+        let old = &previous.model;
+        let comparable = old.kind == element && old.poisson_ratio == poisson_ratio;
+        let (offset, overlap) = if comparable {
+            eigen::warm::align(old, &model)
+        } else {
+            ([0; 3], 0)
+        };
+        let most = model.voxels.len().max(old.voxels.len()) as f64;
+        let solution = if comparable && overlap as f64 >= WARM_MIN_OVERLAP * most {
+            eigen::warm::solve(&model, old, &previous.solution, offset, options)?
+        } else {
+            eigen::solve(&model, solver, options)?
+        };
+        Ok(Self::from_parts(grid, model, solution, assemble_ms))
+    }
+
+    /// The instant approximate answer to an edit of `previous` ([`eigen::warm::ritz`]): the
+    /// previous modes carried to the new shape and re-balanced by Rayleigh-Ritz, without a
+    /// solve. `None` when the shapes are not comparable (see [`ModeBasis::solve_warm`]).
+    pub fn carried_ritz(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        count: usize,
+        previous: &ModeBasis,
+    ) -> Option<Result<Self, ModalError>> {
+        let old = &previous.model;
+        if old.kind != element || old.poisson_ratio != poisson_ratio {
+            return None;
+        }
+        let t = std::time::Instant::now();
+        let model = match FemModel::assemble(grid, element, poisson_ratio) {
+            Ok(m) => m,
+            Err(e) => return Some(Err(e.into())),
+        };
+        let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
+        let (offset, overlap) = eigen::warm::align(old, &model);
+        let most = model.voxels.len().max(old.voxels.len()) as f64;
+        if (overlap as f64) < WARM_MIN_OVERLAP * most {
+            return None;
+        }
+        Some(
+            eigen::warm::ritz(&model, old, &previous.solution, offset, count)
+                .map(|solution| Self::from_parts(grid, model, solution, assemble_ms))
+                .map_err(ModalError::from),
+        )
+    }
+
+    fn from_parts(
+        grid: &VoxelGrid,
+        model: FemModel,
+        solution: EigenSolution,
+        assemble_ms: f64,
+    ) -> Self {
+        ModeBasis {
             shape_hash: grid.shape_hash(),
             components: ops::components(grid).1,
             model,
@@ -164,7 +248,7 @@ impl ModeBasis {
             solution,
             assemble_ms,
             surface: exposed_faces(grid),
-        })
+        }
     }
 
     /// Eigenvalue bound in reference units for "every mode below `fmax_hz`" of this material

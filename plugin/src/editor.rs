@@ -286,10 +286,19 @@ impl EditorApp {
             stats.active_voices.load(Ordering::Relaxed),
             100.0 * stats.load()
         );
+        // An approximate answer playing while the exact one is solved says so, with its error.
+        let playing = match &st.playing {
+            Some(p) if p.expected_error.is_some() => format!(
+                "playing the {} answer (within ~{}) · ",
+                p.solver,
+                percent(p.expected_error.unwrap_or(0.0))
+            ),
+            _ => String::new(),
+        };
         match (&st.state, &st.last) {
             (SolveState::Solving { solver, since }, _) => (
                 format!(
-                    "solving... {:.1} s ({solver}) · {engine}",
+                    "{playing}solving... {:.1} s ({solver}) · {engine}",
                     since.elapsed().as_secs_f64()
                 ),
                 false,
@@ -303,7 +312,7 @@ impl EditorApp {
             ),
             (SolveState::Idle, Some(last)) => (
                 format!(
-                    "{} modes solved in {:.2} s ({}) · {engine}",
+                    "{playing}{} modes solved in {:.2} s ({}) · {engine}",
                     last.modes,
                     last.ms / 1e3,
                     last.solver
@@ -513,3 +522,13 @@ impl NiceEguiApp for EditorWindow {
 
 #[cfg(test)]
 mod tests;
+
+/// A relative error as a short percentage ("0.1 %", "10 %").
+fn percent(relative: f64) -> String {
+    let p = 100.0 * relative;
+    if p < 1.0 {
+        format!("{p:.1} %")
+    } else {
+        format!("{p:.0} %")
+    }
+}

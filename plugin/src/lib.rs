@@ -24,8 +24,7 @@ use keymap::KeyMap;
 use materials::MaterialTable;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    AudioEngine, Engine, EngineConfig, EngineControl, Event, FemSolver, ObjectRequest, Pitch,
-    TimedEvent,
+    AudioEngine, Engine, EngineConfig, EngineControl, Event, ObjectRequest, Pitch, TimedEvent,
 };
 use modalforge::fem::ElementKind;
 use nice_plug::prelude::*;
@@ -191,7 +190,7 @@ impl Plugin for ModalForge {
             rate,
             EngineConfig::default(),
             voicing,
-            vec![Box::new(FemSolver)],
+            modalforge::engine::interactive_solvers(),
         );
         match started {
             Ok((audio, control)) => {

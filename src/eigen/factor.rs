@@ -4,13 +4,14 @@
 
 use super::EigenError;
 use crate::fem::sparse::BlockPattern;
+use crate::fem::sparse::RowBlock;
 use crate::fem::{ordering, sparse, FemModel};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Conj, Mat, MatMut, Par, Side};
 
 /// Largest Cholesky factor accepted, in bytes: beyond it the solve would exhaust memory or take
 /// minutes; the error suggests LOBPCG or a coarser grid.
@@ -23,6 +24,7 @@ pub struct ShiftedCholesky {
     scratch: MemBuffer,
     max_rhs: usize,
     par: Par,
+    dofs: usize,
 }
 
 impl ShiftedCholesky {
@@ -101,6 +103,7 @@ impl ShiftedCholesky {
             .map_err(|e| fail(&e))?;
         let scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(max_rhs, par));
         Ok(ShiftedCholesky {
+            dofs: n,
             symbolic,
             values,
             scratch,
@@ -126,5 +129,26 @@ impl ShiftedCholesky {
             self.par,
             MemStack::new(&mut self.scratch),
         );
+    }
+}
+
+impl super::lobpcg::Preconditioner for ShiftedCholesky {
+    /// The exact inverse `(K - sigma M)^-1`, in chunks of `max_rhs` columns (allocates one
+    /// column-major copy of a chunk).
+    fn apply(&mut self, r: &[f64], r_layout: RowBlock, z: &mut [f64], z_layout: RowBlock) {
+        assert_eq!(r_layout.width, z_layout.width);
+        let n = self.dofs;
+        let mut c0 = 0;
+        while c0 < r_layout.width {
+            let b = self.max_rhs.min(r_layout.width - c0);
+            let mut block = Mat::from_fn(n, b, |i, j| r[i * r_layout.stride + c0 + j]);
+            self.solve_in_place(block.as_mut());
+            for j in 0..b {
+                for (i, v) in block.col(j).iter().enumerate() {
+                    z[i * z_layout.stride + c0 + j] = *v;
+                }
+            }
+            c0 += b;
+        }
     }
 }

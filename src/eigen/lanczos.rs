@@ -15,10 +15,11 @@
 use super::factor::ShiftedCholesky;
 use super::{
     random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount,
-    Operators,
+    Operators, Which,
 };
 use crate::fem::FemModel;
-use faer::{Mat, Par};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
 use std::time::Instant;
 
 /// The shift as a fraction of `trace K / trace M`; below the softest mode of most objects, and
@@ -70,9 +71,17 @@ impl Basis {
         }
         let v = self.v.get(.., ..self.len);
         let mv = self.mv.get(.., ..self.len);
+        let mut c = Mat::<f64>::zeros(self.len, w.ncols());
         for _ in 0..2 {
-            let c = mv.transpose() * &*w;
-            *w -= v * &c;
+            matmul(
+                c.as_mut(),
+                Accum::Replace,
+                mv.transpose(),
+                w.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            matmul(w.as_mut(), Accum::Add, v, c.as_ref(), -1.0, Par::Seq);
             total += &c;
         }
         total
@@ -81,6 +90,74 @@ impl Basis {
 
 /// `(Q, M Q, R)` of a block M-QR factorisation.
 type BlockQr = (Mat<f64>, Mat<f64>, Mat<f64>);
+
+/// A column whose M-norm after projection is below this fraction of its norm before it has
+/// (numerically) no new direction: the block QR falls back to [`block_qr`], which replaces it.
+const BREAKDOWN_RELATIVE: f64 = 1e-10;
+
+/// Cholesky QR in the M-inner product, twice (CholQR2: Yamamoto et al. 2015): one block
+/// product `M W` (SpMM), two small Cholesky factorisations, and `M Q` follows from `M W`
+/// without another product. `projected` holds the coefficients [`Basis::project_out`] removed,
+/// so a column that lost nearly all of its norm there is detected; such a block, or one whose
+/// columns are nearly dependent, returns `None` (the caller uses [`block_qr`]).
+fn chol_qr(ops: &Operators, w: &Mat<f64>, projected: &Mat<f64>) -> Option<BlockQr> {
+    let b = w.ncols();
+    let mw = ops.apply_block(Which::M, w.as_ref());
+    let g = w.transpose() * &mw;
+    for j in 0..b {
+        let before = projected.col(j).iter().map(|c| c * c).sum::<f64>() + g[(j, j)];
+        let kept = g[(j, j)];
+        if kept.is_nan() || kept <= BREAKDOWN_RELATIVE * BREAKDOWN_RELATIVE * before {
+            return None;
+        }
+    }
+    let r1 = upper_cholesky(&g)?;
+    let inv1 = upper_inverse(&r1);
+    let q = w * &inv1;
+    let mq = &mw * &inv1;
+    let r2 = upper_cholesky(&(q.transpose() * &mq))?;
+    let inv2 = upper_inverse(&r2);
+    Some((&q * &inv2, &mq * &inv2, &r2 * &r1))
+}
+
+/// `R` upper triangular with `R^T R = G`, or `None` if `G` is not safely positive definite
+/// (condition above ~1e12, where CholQR loses orthogonality).
+fn upper_cholesky(g: &Mat<f64>) -> Option<Mat<f64>> {
+    let b = g.nrows();
+    let mut r = Mat::<f64>::zeros(b, b);
+    let top = (0..b).map(|i| g[(i, i)]).fold(0.0, f64::max);
+    for j in 0..b {
+        for i in 0..=j {
+            let mut s = 0.5 * (g[(i, j)] + g[(j, i)]);
+            for k in 0..i {
+                s -= r[(k, i)] * r[(k, j)];
+            }
+            if i == j {
+                if s.is_nan() || s <= 1e-12 * top {
+                    return None;
+                }
+                r[(j, j)] = s.sqrt();
+            } else {
+                r[(i, j)] = s / r[(i, i)];
+            }
+        }
+    }
+    Some(r)
+}
+
+/// Inverse of a small upper-triangular matrix with a positive diagonal.
+fn upper_inverse(r: &Mat<f64>) -> Mat<f64> {
+    let b = r.nrows();
+    let mut inv = Mat::<f64>::zeros(b, b);
+    for j in 0..b {
+        inv[(j, j)] = 1.0 / r[(j, j)];
+        for i in (0..j).rev() {
+            let s: f64 = (i + 1..=j).map(|k| r[(i, k)] * inv[(k, j)]).sum();
+            inv[(i, j)] = -s / r[(i, i)];
+        }
+    }
+    inv
+}
 
 /// M-orthonormalises the columns of `w` (already orthogonal to `basis`) by modified Gram-Schmidt
 /// with reorthogonalisation. Returns `(Q, M Q, R)` with `W = Q R`; a column that is (nearly) in
@@ -174,6 +251,124 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     Ok(solution)
 }
 
+/// What a convergence check found.
+enum Check {
+    /// Every wanted pair has converged: the answer.
+    Done(EigenSolution),
+    /// Not yet: the number of leading pairs that converged and the residual of the next one.
+    Converged(usize, f64),
+}
+
+/// The Ritz pairs of the current basis and the block that would extend it (`q`, `m q`, and
+/// `r`, its coupling to the last basis block `last`). The Lanczos relation gives every Ritz
+/// pair's residual in the operator, `Op x - theta x = Q R y_last`; multiplied by `K - sigma M`
+/// it is the residual of seed 001 eq. 6 up to the factor `1 / theta`, so one product of `K`
+/// with the `b` columns of `Q` gives all of them exactly (Gram matrix `G = Z^T Z`,
+/// `Z = (K - sigma M) Q`), with `||x||_2 >= 1 / sqrt(||M||)` for an M-unit vector. Only when
+/// those estimates say the request is met are the Ritz vectors formed and their residuals
+/// computed explicitly (block products); the explicit values decide.
+struct RitzCheck<'a> {
+    ops: &'a Operators<'a>,
+    shift: f64,
+    options: &'a EigenOptions,
+    nev: usize,
+    started: Instant,
+    restarts: usize,
+}
+
+impl RitzCheck<'_> {
+    fn run(
+        &self,
+        basis: &Basis,
+        h: &Mat<f64>,
+        last: std::ops::Range<usize>,
+        next: (&Mat<f64>, &Mat<f64>, &Mat<f64>),
+    ) -> Result<Check, EigenError> {
+        let (ops, len) = (self.ops, basis.len);
+        let (theta, y) = sym_eigen(&h.get(0..len, 0..len).to_owned())?;
+        let order: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
+        let check = self.nev.min(order.len());
+        let (q, mq, r) = next;
+        let mut z = ops.apply_block(Which::K, q.as_ref());
+        z -= self.shift * mq;
+        let g = z.transpose() * &z;
+        let mut estimated = Vec::with_capacity(check);
+        let mut worst = 0.0;
+        for &o in order.iter().take(check) {
+            let lambda = self.shift + 1.0 / theta[o];
+            let c = r * Mat::from_fn(last.len(), 1, |i, _| y[(last.start + i, o)]);
+            let cgc = (c.transpose() * &g * &c)[(0, 0)].max(0.0);
+            let bound = cgc.sqrt() / theta[o] * ops.m_norm.sqrt()
+                / (ops.k_norm + lambda.abs() * ops.m_norm);
+            if !bound.is_finite() {
+                return Err(EigenError::NonFinite);
+            }
+            if bound > self.options.tolerance {
+                worst = bound;
+                break;
+            }
+            estimated.push((lambda, estimated.len(), bound));
+        }
+        if !select(ops, &estimated, self.options.count).complete {
+            return Ok(Check::Converged(estimated.len(), worst));
+        }
+        self.verify(basis, &theta, &y, &order[..estimated.len()])
+    }
+
+    /// Forms the Ritz vectors of `order` (descending theta) and checks them explicitly.
+    fn verify(
+        &self,
+        basis: &Basis,
+        theta: &[f64],
+        y: &Mat<f64>,
+        order: &[usize],
+    ) -> Result<Check, EigenError> {
+        let len = basis.len;
+        // The checked pairs, then guard vectors for a later warm start (unchecked).
+        let check = order.len();
+        let all: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
+        let width = (check + super::warm_guard(self.nev)).min(all.len());
+        let ysel = Mat::from_fn(len, width, |i, j| y[(i, all[j])]);
+        let x = basis.v.get(.., 0..len) * &ysel;
+        let lambdas: Vec<f64> = order.iter().map(|&o| self.shift + 1.0 / theta[o]).collect();
+        let res = self.ops.block_residuals(&lambdas, x.get(.., 0..check));
+        let mut pairs = Vec::with_capacity(order.len());
+        let mut worst = 0.0;
+        for (j, (&lambda, &r)) in lambdas.iter().zip(&res).enumerate() {
+            if !r.is_finite() {
+                return Err(EigenError::NonFinite);
+            }
+            if r > self.options.tolerance {
+                worst = r;
+                break;
+            }
+            pairs.push((lambda, j, r));
+        }
+        let sel = select(self.ops, &pairs, self.options.count);
+        if !sel.complete {
+            return Ok(Check::Converged(pairs.len(), worst));
+        }
+        let timings = super::SolveTimings {
+            setup_ms: 0.0,
+            iterate_ms: self.started.elapsed().as_secs_f64() * 1e3,
+        };
+        Ok(Check::Done(solution(
+            &pairs,
+            &sel,
+            x.as_ref(),
+            timings,
+            self.restarts,
+            super::SolverKind::Lanczos,
+        )))
+    }
+}
+
+/// Basis length from which the Ritz pairs are checked after every block: the wanted pairs
+/// plus two blocks (fewer vectors cannot hold `nev` converged pairs of a block method).
+fn first_check(nev: usize, b: usize) -> usize {
+    nev + 2 * b
+}
+
 /// The iteration on an existing factorisation `llt` of `K - shift M` (sized for at least
 /// `options.block_size` right-hand sides); `setup_ms` of the result is zero.
 pub fn run(
@@ -182,12 +377,8 @@ pub fn run(
     shift: f64,
     options: &EigenOptions,
 ) -> Result<EigenSolution, EigenError> {
-    let ops = *ops;
     let n = ops.dofs();
     let b = options.block_size.min(n);
-    let setup_ms = 0.0;
-    let t1 = Instant::now();
-
     let mut nev = match options.count {
         ModeCount::First(k) => k + 6,
         ModeCount::Below(_) => 26,
@@ -197,26 +388,42 @@ pub fn run(
             return Err(EigenError::TooFewDofs { dofs: n, wanted: k });
         }
     }
+    let mut checker = RitzCheck {
+        ops,
+        shift,
+        options,
+        nev,
+        started: Instant::now(),
+        restarts: 0,
+    };
     let mut basis = Basis::new(n, basis_cap(nev, b, n));
     let mut h = Mat::<f64>::zeros(basis.cap(), basis.cap());
     let mut seed = 1u64;
-    let (q, mq, _) = block_qr(&ops, &basis, random_block(n, b, seed), &mut seed)?;
+    let (q, mq, _) = block_qr(ops, &basis, random_block(n, b, seed), &mut seed)?;
     basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
     basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
     basis.len = b;
     let mut fresh = 0..b; // columns whose operator image is still to be computed
-    let mut scratch = vec![0.0; 2 * n];
-    let mut worst = f64::INFINITY;
-    let mut converged_count = 0;
+    let (mut converged_count, mut worst) = (0, f64::INFINITY);
     for restart in 0..options.max_iterations {
-        // Expand until the basis is full; the last block's residual is kept for the restart.
+        checker.restarts = restart;
+        // Expand until converged or full; the last block's residual is kept for the restart.
         let (q_res, mq_res, r_res, last) = loop {
             let cols = fresh.clone();
             let mut w = basis.mv.get(.., cols.clone()).to_owned();
             llt.solve_in_place(w.as_mut());
             let c = basis.project_out(&mut w);
             h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
-            let (q, mq, r) = block_qr(&ops, &basis, w, &mut seed)?;
+            let (q, mq, r) = match chol_qr(ops, &w, &c) {
+                Some(qr) => qr,
+                None => block_qr(ops, &basis, w, &mut seed)?,
+            };
+            if basis.len >= first_check(nev, b) {
+                match checker.run(&basis, &h, cols.clone(), (&q, &mq, &r))? {
+                    Check::Done(solution) => return Ok(solution),
+                    Check::Converged(..) => {}
+                }
+            }
             if basis.len + q.ncols() > basis.cap() {
                 break (q, mq, r, cols);
             }
@@ -231,40 +438,17 @@ pub fn run(
         let (theta, y) = sym_eigen(&h.get(0..len, 0..len).to_owned())?;
         // Descending theta = ascending lambda.
         let order: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
+        // The estimates can be pessimistic: a full basis is always checked explicitly.
         let check = nev.min(order.len());
-        let ysel = Mat::from_fn(len, check, |i, j| y[(i, order[j])]);
-        let x = basis.v.get(.., 0..len) * &ysel;
-        let mut pairs = Vec::new();
-        worst = 0.0;
-        for j in 0..check {
-            let lambda = shift + 1.0 / theta[order[j]];
-            let res = ops.residual(lambda, x.col_as_slice(j), &mut scratch);
-            if !res.is_finite() {
-                return Err(EigenError::NonFinite);
+        let rigid = match checker.verify(&basis, &theta, &y, &order[..check])? {
+            Check::Done(solution) => return Ok(solution),
+            Check::Converged(c, w) => {
+                (converged_count, worst) = (c, w);
+                let lambdas: Vec<f64> =
+                    order[..c].iter().map(|&o| shift + 1.0 / theta[o]).collect();
+                lambdas.iter().filter(|&&l| ops.is_rigid(l)).count()
             }
-            if res > options.tolerance {
-                worst = res;
-                break;
-            }
-            pairs.push((lambda, j, res));
-        }
-        converged_count = pairs.len();
-        let sel = select(&ops, &pairs, options.count);
-        if sel.complete {
-            let timings = super::SolveTimings {
-                setup_ms,
-                iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
-            };
-            return Ok(solution(
-                &pairs,
-                &sel,
-                x.as_ref(),
-                timings,
-                restart,
-                super::SolverKind::Lanczos,
-            ));
-        }
-        let rigid = sel.rigid;
+        };
         // Not done: how many pairs are wanted now that the rigid count is known?
         nev = match options.count {
             ModeCount::First(k) => nev.max(rigid + k),
@@ -273,6 +457,7 @@ pub fn run(
             }
             ModeCount::Below(_) => nev,
         };
+        checker.nev = nev;
         if nev + 2 * b > n {
             return Err(EigenError::TooFewDofs {
                 dofs: n,

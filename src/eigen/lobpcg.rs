@@ -37,6 +37,21 @@ use std::time::Instant;
 /// Columns per V-cycle (the multigrid scratch is sized for this many).
 const MG_WIDTH: usize = 32;
 
+/// `z ~= (K - sigma M)^-1 r` for a block of residuals: what LOBPCG's search directions come
+/// from. The multigrid V-cycle ([`Multigrid`]) approximates it for cold solves of large models;
+/// a sparse Cholesky factor ([`super::factor::ShiftedCholesky`]) applies it exactly, which
+/// makes LOBPCG from a good start ([`super::warm`]) converge in a few iterations.
+pub trait Preconditioner {
+    /// Applies the preconditioner to the `r_layout.width` columns of `r` into `z` (same width).
+    fn apply(&mut self, r: &[f64], r_layout: RowBlock, z: &mut [f64], z_layout: RowBlock);
+}
+
+impl Preconditioner for Multigrid {
+    fn apply(&mut self, r: &[f64], r_layout: RowBlock, z: &mut [f64], z_layout: RowBlock) {
+        Multigrid::apply(self, r, r_layout, z, z_layout)
+    }
+}
+
 /// Directions of the scaled `M`-Gram matrix with eigenvalue below this fraction of its largest
 /// are dropped from the Rayleigh-Ritz basis.
 const GRAM_DROP: f64 = 1e-12;
@@ -57,7 +72,7 @@ pub const MAX_TOLERANCE: f64 = 1e-6;
 const COARSE_TOLERANCE: f64 = 1e-5;
 
 /// Guard vectors for `need` wanted ones.
-fn guard(need: usize) -> usize {
+pub(crate) fn guard(need: usize) -> usize {
     (need / 4).max(4)
 }
 
@@ -180,6 +195,19 @@ fn rayleigh_ritz(blocks: &[&Images], want: usize) -> Result<(Vec<f64>, Mat<f64>)
         }
         r0 += bi.width;
     }
+    dense_ritz(&gk, &gm, want)
+}
+
+/// The lowest `want` eigenpairs of the dense pencil `(gk, gm)` (Gram matrices of a basis):
+/// Ritz values and coefficients. Scales `gm` to a unit diagonal and keeps its
+/// well-conditioned directions (Hetmaniuk and Lehoucq 2006), so a nearly dependent basis does
+/// no harm.
+pub(crate) fn dense_ritz(
+    gk: &Mat<f64>,
+    gm: &Mat<f64>,
+    want: usize,
+) -> Result<(Vec<f64>, Mat<f64>), EigenError> {
+    let s = gk.nrows();
     // Scale to unit diagonal, then keep the well-conditioned directions of the M-Gram matrix.
     let d: Vec<f64> = (0..s)
         .map(|i| {
@@ -201,7 +229,7 @@ fn rayleigh_ritz(blocks: &[&Images], want: usize) -> Result<(Vec<f64>, Mat<f64>)
     let z = Mat::from_fn(s, keep.len(), |i, j| {
         d[i] * u[(i, keep[j])] / sigma[keep[j]].sqrt()
     });
-    let h = z.transpose() * &gk * &z;
+    let h = z.transpose() * gk * &z;
     let (theta, y) = sym_eigen(&h)?;
     let c = &z * y.get(.., 0..want);
     Ok((theta[..want].to_vec(), c))
@@ -228,10 +256,31 @@ fn combine(dst: &mut Images, blocks: &[&Images], c: MatRef<'_, f64>) {
 }
 
 /// The converged state of one LOBPCG run.
-struct Converged {
-    theta: Vec<f64>,
+pub(crate) struct Converged {
+    /// Ritz values, ascending.
+    pub theta: Vec<f64>,
     x: Images,
-    residuals: Vec<f64>,
+    /// Residuals (seed 001 eq. 6).
+    pub residuals: Vec<f64>,
+}
+
+impl Converged {
+    /// `(theta, column, residual)` of the leading columns that meet `tolerance`.
+    pub fn converged_pairs(&self, tolerance: f64) -> Vec<(f64, usize, f64)> {
+        let conv = self
+            .residuals
+            .iter()
+            .take_while(|&&r| r <= tolerance)
+            .count();
+        (0..conv)
+            .map(|j| (self.theta[j], j, self.residuals[j]))
+            .collect()
+    }
+
+    /// The Ritz vectors, one column each (a view of the row-major block).
+    pub fn vectors(&self) -> MatRef<'_, f64> {
+        self.x.view(Part::X)
+    }
 }
 
 /// Per-column residuals of seed 001 eq. 6 for the block's columns (`theta` holds their Ritz
@@ -264,9 +313,9 @@ fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
 /// locking): it is no longer part of Rayleigh-Ritz or the block updates, and new directions are
 /// kept `M`-orthogonal to it. Converged columns above an unconverged one only stop contributing
 /// residual directions (soft locking), so the locked set is always the lowest Ritz pairs.
-fn iterate(
+pub(crate) fn iterate(
     ops: &Operators,
-    mg: &mut Multigrid,
+    precond: &mut dyn Preconditioner,
     start: &[f64],
     m: usize,
     need: usize,
@@ -362,7 +411,7 @@ fn iterate(
         wb.width = a;
         let wl = wb.layout();
 
-        mg.apply(&rbuf[..n * a], RowBlock::dense(a), &mut wb.x, wl);
+        precond.apply(&rbuf[..n * a], RowBlock::dense(a), &mut wb.x, wl);
         // W -= X (M X)^T W over all columns, locked ones included: keeps W M-orthogonal to the
         // locked modes and the Gram matrices well conditioned.
         {
@@ -425,7 +474,7 @@ fn to_rows(mat: MatRef<'_, f64>) -> Vec<f64> {
 }
 
 /// The six rigid-body fields (translations, rotations about the centroid), row-major `n x 6`.
-fn rigid_fields(model: &FemModel) -> Vec<f64> {
+pub(crate) fn rigid_fields(model: &FemModel) -> Vec<f64> {
     let nodes = model.nodes();
     let mut centre = [0.0; 3];
     for i in 0..nodes {
@@ -559,14 +608,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     let mut iterations = 0;
     loop {
         let done = iterate(&ops, &mut mg, &block, m, need, options, &mut iterations)?;
-        let conv = done
-            .residuals
-            .iter()
-            .take_while(|&&r| r <= options.tolerance)
-            .count();
-        let pairs: Vec<(f64, usize, f64)> = (0..conv)
-            .map(|j| (done.theta[j], j, done.residuals[j]))
-            .collect();
+        let pairs = done.converged_pairs(options.tolerance);
         let sel = select(&ops, &pairs, options.count);
         if sel.complete {
             let timings = SolveTimings {

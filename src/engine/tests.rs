@@ -436,3 +436,83 @@ fn the_output_never_holds_subnormal_samples() {
     let loud = render(&mut audio, 4800, &[strike(2, 1.0)]);
     assert!(loud.iter().any(|x| x.abs() > 1e-6));
 }
+
+/// A hollow box, walls two voxels thick (survives halving its resolution).
+fn thick_box(side: usize) -> VoxelGrid {
+    let solid = VoxelGrid::from_fn([side, side, side], 0.01, |_, _, _| true).unwrap();
+    crate::shape::ops::hollow(&solid, 2)
+}
+
+#[test]
+fn coarse_grid_halves_thick_objects_and_refuses_thin_walls() {
+    let grid = thick_box(16);
+    let coarse = coarse_grid(&grid).expect("a 2-voxel wall survives halving");
+    assert_eq!(coarse.dims(), [8, 8, 8]);
+    assert_eq!(coarse.voxel_size_m(), 0.02);
+    // Volume kept within the stated 25 % (here exactly: the walls are aligned to 2).
+    assert_eq!(8 * coarse.count(), grid.count());
+    let thin = crate::shape::ops::hollow(
+        &VoxelGrid::from_fn([16, 16, 16], 0.01, |_, _, _| true).unwrap(),
+        1,
+    );
+    assert!(
+        coarse_grid(&thin).is_none(),
+        "a 1-voxel wall does not survive"
+    );
+    // The cost model orders objects by size.
+    let count = ModeCount::First(60);
+    assert!(predicted_cold_ms(&thick_box(24), count) > predicted_cold_ms(&grid, count));
+}
+
+#[test]
+fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
+    // The interactive chain on a stroke: the carried answer is delivered first, within its
+    // stated error of the exact one, and the exact answer (solved cold) replaces it.
+    let (mut audio, control) =
+        Engine::start(FS, EngineConfig::default(), steel(), interactive_solvers()).unwrap();
+    let grid = thick_box(10);
+    control.request(request(grid.clone(), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let first = control.status();
+    assert_eq!(first.last.as_ref().unwrap().solver, "fem");
+    let mut edited = grid.clone();
+    edited.set(5, 5, 9, false);
+    control.request(request(edited, 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let st = control.status();
+    assert_eq!(st.solves, first.solves + 2, "carried, then exact: {st:?}");
+    assert_eq!(st.last.as_ref().unwrap().solver, "fem");
+    assert_eq!(st.playing.as_ref().unwrap().expected_error, None);
+    let exact = control.latest_object().unwrap();
+    // Both answers went to the audio side; the newest is the exact one.
+    audio.process(&mut [0.0; 16], &[]);
+    assert!(audio.has_object());
+    let carried = ModeBasis::carried_ritz(
+        &exact_grid(&exact),
+        ElementKind::Hex8Incompatible,
+        Material::preset("steel").unwrap().poisson_ratio,
+        20,
+        &FemSolver.solve(&request(grid, 20)).unwrap(),
+    )
+    .unwrap()
+    .unwrap();
+    for (c, e) in carried
+        .solution
+        .eigenvalues
+        .iter()
+        .zip(&exact.basis.solution.eigenvalues)
+    {
+        let err = (c.sqrt() - e.sqrt()).abs() / e.sqrt();
+        assert!(err < CARRIED_EXPECTED_ERROR, "{err:.1e}");
+    }
+}
+
+/// The grid a basis was solved for, rebuilt from its voxels.
+fn exact_grid(latest: &crate::engine::LatestObject) -> VoxelGrid {
+    let dims = latest.basis.grid_dims();
+    let mut g = VoxelGrid::new(dims, 0.01).unwrap();
+    for v in &latest.basis.model.voxels {
+        g.set(v[0], v[1], v[2], true);
+    }
+    g
+}

@@ -5,8 +5,9 @@
 //! [`EngineControl::request`]) and [`super::audio::AudioEngine`] (which pops solved objects
 //! from an `rtrb` ring and pushes the replaced ones back through a second ring, freed here).
 //! Requests that arrive during a solve coalesce: only the newest waiting one is solved next.
-//! Solvers form a chain ([`ModeSolver`]): a fast approximate one (the neural predictor, later)
-//! answers first and the exact FEM solve replaces it, unless a newer request has arrived.
+//! Solvers form a chain ([`ModeSolver`]): a fast approximate one (a coarse grid,
+//! [`super::solvers`]; the neural predictor, later) answers first and the exact FEM solve
+//! replaces it, unless a newer request has arrived.
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
@@ -46,6 +47,16 @@ pub trait ModeSolver: Send {
     fn name(&self) -> &'static str;
     /// Solves the request.
     fn solve(&mut self, request: &ObjectRequest) -> Result<ModeBasis, ModalError>;
+    /// Whether this solver answers `request` at all (a progressive first answer is skipped
+    /// where the exact one is fast anyway). Default: always.
+    fn applies(&self, _request: &ObjectRequest) -> bool {
+        true
+    }
+    /// The typical relative frequency error of this solver's answers, for the status line
+    /// (`None`: exact to the solver tolerance).
+    fn expected_error(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// The finite-element modal analysis ([`ModeBasis::solve`]): exact, the reference.
@@ -88,6 +99,10 @@ pub struct SolveReport {
     pub modes: usize,
     /// The error, one line, if it failed (the previous object keeps playing).
     pub error: Option<String>,
+    /// The answer's typical relative frequency error ([`ModeSolver::expected_error`]).
+    pub expected_error: Option<f64>,
+    /// Whether the exact answer was refined from the previous edit's modes.
+    pub warm_start: bool,
 }
 
 /// The worker's state for the editor's status line.
@@ -99,6 +114,8 @@ pub struct WorkerStatus {
     pub last: Option<SolveReport>,
     /// Requests solved (each solver run counts once).
     pub solves: u64,
+    /// The last successful answer: the one playing (or about to), with its expected error.
+    pub playing: Option<SolveReport>,
 }
 
 struct Mailbox {
@@ -156,6 +173,7 @@ impl EngineControl {
                 state: SolveState::Idle,
                 last: None,
                 solves: 0,
+                playing: None,
             }),
             source: Mutex::new(None),
             latest: Mutex::new(None),
@@ -306,6 +324,9 @@ impl Worker {
                 // A newer edit is waiting: the slower solvers would answer an old question.
                 break;
             }
+            if !self.solvers[i].applies(request) {
+                continue;
+            }
             let name = self.solvers[i].name();
             let since = Instant::now();
             lock(&self.shared.status).state = SolveState::Solving {
@@ -313,11 +334,13 @@ impl Worker {
                 since,
             };
             let result = self.solvers[i].solve(request);
+            let expected_error = self.solvers[i].expected_error();
             let ms = since.elapsed().as_secs_f64() * 1e3;
             let report = match result {
                 Ok(basis) => {
                     self.generation += 1;
                     let modes = basis.mode_count();
+                    let warm_start = basis.solution.warm_start;
                     let basis = Arc::new(basis);
                     *lock(&self.shared.latest) = Some(LatestObject {
                         generation: self.generation,
@@ -337,6 +360,8 @@ impl Worker {
                         ms,
                         modes,
                         error: None,
+                        expected_error,
+                        warm_start,
                     }
                 }
                 Err(e) => SolveReport {
@@ -345,9 +370,14 @@ impl Worker {
                     ms,
                     modes: 0,
                     error: Some(e.to_string()),
+                    expected_error,
+                    warm_start: false,
                 },
             };
             let mut st = lock(&self.shared.status);
+            if report.error.is_none() {
+                st.playing = Some(report.clone());
+            }
             st.last = Some(report);
             st.solves += 1;
         }

@@ -1,0 +1,229 @@
+//! The time from a sculpting edit to exact modes, on one core: what a sound designer waits for.
+//!
+//! `cargo bench --bench interactive` prints, for the plugin's default object and every preset
+//! in `presets/objects/` (60 modes, the plugin's default; hex8 with incompatible modes; the
+//! preset's material's Poisson's ratio; residual 1e-6):
+//! - **cold**: assembly + a solve from scratch (the time split, the solver that ran);
+//! - **ritz / warm**: after a one-voxel brush stroke (a voxel added on the surface, then one
+//!   removed), the instant carried answer ([`ModeBasis::carried_ritz`]) and the exact modes
+//!   refined from the previous shape's ([`ModeBasis::solve_warm`]) with its iterations, each
+//!   with the largest frequency difference from a cold solve of the same edited shape;
+//! - **coarse**: the progressive first answer ([`modalforge::engine::coarse_grid`]), its time
+//!   and the mean frequency error of its lowest 10 modes against the exact ones.
+//!
+//! `-- --quick` runs the default object only.
+
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::engine::coarse_grid;
+use modalforge::fem::ElementKind;
+use modalforge::material::Material;
+use modalforge::modal::ModeBasis;
+use modalforge::shape::spec::ShapeSpec;
+use modalforge::shape::{ops, VoxelGrid};
+use std::time::Instant;
+
+/// The plugin's default mode count.
+const MODES: usize = 60;
+
+fn grid_of(spec: &str) -> VoxelGrid {
+    match spec.parse::<ShapeSpec>().expect("shape spec") {
+        ShapeSpec::Primitive { shape, hollow } => {
+            let grid = shape.rasterize(1.0, 1.0).expect("rasterise");
+            match hollow {
+                Some(w) => ops::hollow(&grid, w.round().max(1.0) as usize),
+                None => grid,
+            }
+        }
+        _ => panic!("presets use built-in shapes"),
+    }
+}
+
+/// `(name, shape spec, Poisson's ratio)` of the default object and every object preset.
+fn objects(quick: bool) -> Vec<(String, String, f64)> {
+    let glass = Material::preset("glass").expect("glass").poisson_ratio;
+    let mut out = vec![("default".to_string(), "bowl:d=16,wall=2".to_string(), glass)];
+    if quick {
+        return out;
+    }
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/presets/objects");
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .expect("presets")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    files.sort();
+    for path in files {
+        let text = std::fs::read_to_string(&path).expect("preset");
+        let table: toml::Table = text.parse().expect("preset TOML");
+        let (Some(shape), Some(material)) = (
+            table.get("shape").and_then(|v| v.as_str()),
+            table.get("material").and_then(|v| v.as_str()),
+        ) else {
+            continue;
+        };
+        let nu = Material::preset(material).expect("material").poisson_ratio;
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        out.push((name, shape.to_string(), nu));
+    }
+    out
+}
+
+/// A one-voxel stroke: adds (or removes) the surface voxel nearest the grid's top-front
+/// quarter point, deterministically.
+fn stroke(grid: &VoxelGrid, add: bool) -> VoxelGrid {
+    let d = grid.dims();
+    let target = [d[0] as f64 * 0.3, d[1] as f64 * 0.7, d[2] as f64];
+    let mut best: Option<([usize; 3], f64)> = None;
+    for x in 0..d[0] {
+        for y in 0..d[1] {
+            for z in 0..d[2] {
+                let (xi, yi, zi) = (x as isize, y as isize, z as isize);
+                let solid = grid.get(xi, yi, zi);
+                let nb = [
+                    (1, 0, 0),
+                    (-1, 0, 0),
+                    (0, 1, 0),
+                    (0, -1, 0),
+                    (0, 0, 1),
+                    (0, 0, -1),
+                ];
+                let touching = nb.iter().any(|(a, b, c)| grid.get(xi + a, yi + b, zi + c));
+                let exposed = nb.iter().any(|(a, b, c)| !grid.get(xi + a, yi + b, zi + c));
+                let ok = if add {
+                    !solid && touching
+                } else {
+                    solid && exposed
+                };
+                if ok {
+                    let dist = (x as f64 - target[0]).powi(2)
+                        + (y as f64 - target[1]).powi(2)
+                        + (z as f64 - target[2]).powi(2);
+                    if best.is_none_or(|b| dist < b.1) {
+                        best = Some(([x, y, z], dist));
+                    }
+                }
+            }
+        }
+    }
+    let Some(([x, y, z], _)) = best else {
+        // A full box (a plate): grow the grid by a layer on top and add the voxel there.
+        let mut out = VoxelGrid::new([d[0], d[1], d[2] + 1], grid.voxel_size_m()).expect("grid");
+        for [x, y, z] in grid.solid_voxels() {
+            out.set(x, y, z, true);
+        }
+        out.set(d[0] * 3 / 10, d[1] * 7 / 10, d[2], true);
+        return out;
+    };
+    let mut out = grid.clone();
+    out.set(x, y, z, add);
+    out
+}
+
+fn max_relative_difference(a: &ModeBasis, b: &ModeBasis) -> f64 {
+    let (la, lb) = (&a.solution.eigenvalues, &b.solution.eigenvalues);
+    la.iter()
+        .zip(lb)
+        .map(|(x, y)| ((x.sqrt() - y.sqrt()) / y.sqrt()).abs())
+        .fold(0.0, f64::max)
+}
+
+fn main() {
+    faer::set_global_parallelism(faer::Par::Seq);
+    let quick = std::env::args().any(|a| a == "--quick");
+    let options = EigenOptions {
+        count: ModeCount::First(MODES),
+        ..Default::default()
+    };
+    let kind = ElementKind::Hex8Incompatible;
+    println!("\nedit-to-modes, one core, {MODES} modes, residual 1e-6 (ms)");
+    println!(
+        "{:<16} {:>6} | {:>6} {:>6} {:>6} {:>7} {:>8} | {:>6} {:>7} {:>7} {:>4} {:>8} | {:>6} {:>7} {:>7} {:>4} {:>8} | {:>7} {:>7}",
+        "object", "dofs", "asm", "setup", "iter", "cold", "solver", "ritz+", "err", "warm+",
+        "its", "err", "ritz-", "err", "warm-", "its", "err", "coarse", "err10"
+    );
+    for (name, spec, nu) in objects(quick) {
+        let grid = grid_of(&spec);
+        let t = Instant::now();
+        let cold = ModeBasis::solve(&grid, kind, nu, SolverKind::Auto, &options).expect("cold");
+        let cold_ms = t.elapsed().as_secs_f64() * 1e3;
+        let mut warm_cols = Vec::new();
+        let mut previous = cold.clone();
+        let mut current = grid.clone();
+        for add in [true, false] {
+            let edited = stroke(&current, add);
+            let t = Instant::now();
+            let carried =
+                ModeBasis::carried_ritz(&edited, kind, nu, MODES, &previous).expect("comparable");
+            let carried_ms = t.elapsed().as_secs_f64() * 1e3;
+            let t = Instant::now();
+            let warm =
+                ModeBasis::solve_warm(&edited, kind, nu, SolverKind::Auto, &options, &previous)
+                    .expect("warm");
+            let warm_ms = t.elapsed().as_secs_f64() * 1e3;
+            let reference = ModeBasis::solve(&edited, kind, nu, SolverKind::Lanczos, &options)
+                .expect("cold of the edit");
+            let tag = if warm.solution.warm_start { "" } else { "*" };
+            // No carried answer where the stroke joins or splits parts.
+            let (carried_ms, carried_err) = match &carried {
+                Ok(c) => (
+                    format!("{carried_ms:>6.1}"),
+                    format!("{:>7.1e}", max_relative_difference(c, &reference)),
+                ),
+                Err(_) => (format!("{:>6}", "-"), format!("{:>7}", "-")),
+            };
+            warm_cols.push(format!(
+                "{carried_ms} {carried_err} {:>7.1} {:>3}{tag:1} {:>8.1e}",
+                warm_ms,
+                warm.solution.iterations,
+                max_relative_difference(&warm, &reference)
+            ));
+            previous = warm;
+            current = edited;
+        }
+        let t = Instant::now();
+        let coarse = coarse_grid(&grid)
+            .and_then(|g| ModeBasis::solve(&g, kind, nu, SolverKind::Auto, &options).ok());
+        let coarse_ms = t.elapsed().as_secs_f64() * 1e3;
+        let (coarse_ms, err) = match &coarse {
+            Some(c) => {
+                // Reference units differ by the voxel size: frequency scales by 1/h, the
+                // coarse voxel is twice the edge.
+                let pairs = c
+                    .solution
+                    .eigenvalues
+                    .iter()
+                    .zip(&cold.solution.eigenvalues);
+                let errs: Vec<f64> = pairs
+                    .take(10)
+                    .map(|(c, f)| ((c.sqrt() / 2.0 - f.sqrt()) / f.sqrt()).abs())
+                    .collect();
+                (
+                    format!("{coarse_ms:>7.1}"),
+                    format!(
+                        "{:>6.1}%",
+                        100.0 * errs.iter().sum::<f64>() / errs.len() as f64
+                    ),
+                )
+            }
+            None => (format!("{:>7}", "-"), format!("{:>7}", "-")),
+        };
+        println!(
+            "{:<16} {:>6} | {:>6.1} {:>6.1} {:>6.1} {:>7.1} {:>8} | {} | {} | {} {}",
+            name,
+            cold.model.dofs(),
+            cold.assemble_ms,
+            cold.solution.timings.setup_ms,
+            cold.solution.timings.iterate_ms,
+            cold_ms,
+            cold.solver.name(),
+            warm_cols[0],
+            warm_cols[1],
+            coarse_ms,
+            err
+        );
+    }
+    println!(
+        "+: a voxel added, -: then one removed. ritz: the instant carried answer; warm: the exact \
+         warm-started solve (* = fell back to cold); err: largest relative frequency difference \
+         from a cold solve of the edited shape"
+    );
+}

@@ -1,0 +1,496 @@
+//! Warm starts: the modes of a sculpting edit, refined from the modes of the shape before it.
+//!
+//! Where it sits: beside [`super::lanczos`] and [`super::lobpcg`], behind the same contract
+//! ([`EigenOptions`] in, [`EigenSolution`] out, the residual criterion of NeuralSound, seed 001
+//! eq. 6). [`crate::modal::ModeBasis::solve_warm`] calls it with the previous solved shape; the
+//! engine's [`crate::engine::IncrementalFemSolver`] does so for every edit that keeps most of
+//! the object.
+//!
+//! The method (the "mixed solver" idea of NeuralSound, seed 001 sec. 4: a good start block
+//! makes an iterative eigensolver converge in a few steps):
+//! 1. [`transfer`] carries the previous eigenvectors to the new mesh: a node that persists
+//!    keeps its values, a new node takes the mean of its persisting lattice neighbours. The
+//!    two voxel sets are aligned first (a brush stroke at the edge of the object moves the
+//!    cropped grid's origin).
+//! 2. The start block is the six rigid-body fields, the carried modes, the carried guard
+//!    vectors (the previous solve's next Ritz vectors, [`EigenSolution::guard_vectors`]: with
+//!    them the highest wanted modes converge as fast as the lowest; random guards made them
+//!    take 7-8 iterations) and a few random columns (they let a mode the old shape did not
+//!    have, say a loose voxel's flapping, grow in).
+//! 3. LOBPCG ([`super::lobpcg::iterate`]) refines the block with the exact shift-invert
+//!    preconditioner, a sparse Cholesky factor of the new `K - sigma M`. From a start that is
+//!    right everywhere but near the edit, the first step removes the local error (it lies
+//!    along stiff, high modes that the inverse damps by orders of magnitude) and the
+//!    Rayleigh-Ritz step rotates within the wanted modes: two or three iterations.
+//! 4. A start that does not converge within [`WARM_ITERATIONS`], or that finds a different
+//!    number of rigid-body modes (the edit split the object), falls back to shift-invert
+//!    Lanczos on the same factor: a cold solve, no slower than without the warm start but for
+//!    the iterations spent.
+
+use super::factor::ShiftedCholesky;
+use super::lanczos::{self, SHIFT_RELATIVE};
+use super::lobpcg::{self, rigid_fields};
+use super::{
+    random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
+    SolveTimings, SolverKind,
+};
+use crate::fem::FemModel;
+use faer::{Mat, MatRef, Par};
+use std::time::Instant;
+
+/// LOBPCG iterations a warm start may take before the solve falls back to Lanczos. Measured
+/// (`cargo bench --bench interactive`): one-voxel edits of the presets converge in 2-4.
+pub const WARM_ITERATIONS: usize = 8;
+
+/// Random columns at the end of the start block: a mode the previous shape did not have
+/// (a loose voxel's flapping) grows in from them.
+const RANDOM_GUARDS: usize = 4;
+
+/// Largest voxel offset between the previous and the new grid that [`align`] tries on each
+/// axis (a stroke at the boundary moves the cropped origin by the brush radius at most).
+const MAX_OFFSET: i64 = 4;
+
+/// The previous mesh's eigenvectors on the new mesh.
+#[derive(Clone, Debug)]
+pub struct Transferred {
+    /// Row-major `dofs x columns` block.
+    pub block: Vec<f64>,
+    /// Columns (modes carried).
+    pub columns: usize,
+    /// New nodes that existed before (kept their values).
+    pub kept_nodes: usize,
+    /// New nodes that did not (interpolated from neighbours, or zero).
+    pub new_nodes: usize,
+}
+
+/// The voxel offset `d` that maps the most voxels of `next` onto voxels of `previous`
+/// (`next` voxel `v` is `previous` voxel `v + d`), and that overlap's size. Offset zero wins
+/// ties.
+pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
+    let dims = |m: &FemModel| {
+        let p = m.kind.order();
+        [0, 1, 2].map(|a| (m.lattice[a] - 1) / p)
+    };
+    let pd = dims(previous);
+    let mut occupied = vec![false; pd.iter().product()];
+    for v in &previous.voxels {
+        occupied[v[0] + pd[0] * (v[1] + pd[1] * v[2])] = true;
+    }
+    let overlap = |d: [i64; 3]| {
+        next.voxels
+            .iter()
+            .filter(|v| {
+                let q = [0, 1, 2].map(|a| v[a] as i64 + d[a]);
+                (0..3).all(|a| q[a] >= 0 && q[a] < pd[a] as i64)
+                    && occupied[q[0] as usize + pd[0] * (q[1] as usize + pd[1] * q[2] as usize)]
+            })
+            .count()
+    };
+    let mut best = ([0; 3], overlap([0; 3]));
+    if best.1 == next.voxels.len().min(previous.voxels.len()) {
+        return best;
+    }
+    for dz in -MAX_OFFSET..=MAX_OFFSET {
+        for dy in -MAX_OFFSET..=MAX_OFFSET {
+            for dx in -MAX_OFFSET..=MAX_OFFSET {
+                let o = overlap([dx, dy, dz]);
+                if o > best.1 {
+                    best = ([dx, dy, dz], o);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Carries `vectors` (columns over `previous`'s DOFs) to `next` (same element kind), with
+/// the voxel offset `offset` from [`align`].
+pub fn transfer(
+    previous: &FemModel,
+    vectors: MatRef<'_, f64>,
+    next: &FemModel,
+    offset: [i64; 3],
+) -> Transferred {
+    let p = next.kind.order() as i64;
+    let w = vectors.ncols();
+    let n = next.dofs();
+    let mut block = vec![0.0; n * w];
+    let [plx, ply, plz] = previous.lattice.map(|v| v as i64);
+    let old_node = |q: [i64; 3]| -> Option<usize> {
+        if (0..3).any(|a| q[a] < 0) || q[0] >= plx || q[1] >= ply || q[2] >= plz {
+            return None;
+        }
+        let node = previous.lattice_node[(q[0] + plx * (q[1] + ply * q[2])) as usize];
+        (node != u32::MAX).then_some(node as usize)
+    };
+    let [lx, ly, _] = next.lattice;
+    let (mut kept, mut fresh) = (0, 0);
+    for (node, &l) in next.node_lattice.iter().enumerate() {
+        let here = [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64);
+        let q = [0, 1, 2].map(|a| here[a] + p * offset[a]);
+        let row = &mut block[3 * node * w..3 * (node + 1) * w];
+        if let Some(o) = old_node(q) {
+            kept += 1;
+            for c in 0..3 {
+                for j in 0..w {
+                    row[c * w + j] = vectors[(3 * o + c, j)];
+                }
+            }
+            continue;
+        }
+        fresh += 1;
+        let mut count = 0.0;
+        for d in 0..27i64 {
+            let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
+            if let Some(o) = old_node([0, 1, 2].map(|a| q[a] + step[a])) {
+                count += 1.0;
+                for c in 0..3 {
+                    for j in 0..w {
+                        row[c * w + j] += vectors[(3 * o + c, j)];
+                    }
+                }
+            }
+        }
+        if count > 0.0 {
+            row.iter_mut().for_each(|v| *v /= count);
+        }
+    }
+    Transferred {
+        block,
+        columns: w,
+        kept_nodes: kept,
+        new_nodes: fresh,
+    }
+}
+
+/// Solves `next` for `options.count` (the lowest `k` modes; "modes below a bound" is solved
+/// cold) starting from `previous`'s solution carried over by [`transfer`] (see the module
+/// docs). `offset` comes from [`align`].
+pub fn solve(
+    next: &FemModel,
+    previous: &FemModel,
+    previous_solution: &EigenSolution,
+    offset: [i64; 3],
+    options: &EigenOptions,
+) -> Result<EigenSolution, EigenError> {
+    let options = &EigenOptions {
+        tolerance: options.tolerance.min(lobpcg::MAX_TOLERANCE),
+        ..*options
+    };
+    let ops = Operators::new(next);
+    let n = ops.dofs();
+    let ModeCount::First(k) = options.count else {
+        return super::solve(next, SolverKind::Lanczos, options);
+    };
+    let t0 = Instant::now();
+    let need = previous_solution.rigid_modes + k;
+    let m = need + super::warm_guard(need) + RANDOM_GUARDS;
+    if 4 * m > n || previous.kind != next.kind {
+        return super::solve(next, SolverKind::Lanczos, options);
+    }
+    let shift = -SHIFT_RELATIVE * ops.scale;
+    let mut llt = ShiftedCholesky::new(next, shift, m.max(options.block_size), Par::Seq)?;
+    let old_vectors = concat_columns(
+        previous_solution.vectors.as_ref(),
+        previous_solution.guard_vectors.as_ref(),
+    );
+    let carried = transfer(previous, old_vectors.as_ref(), next, offset);
+    let start = start_block(next, &carried, m);
+    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = Instant::now();
+    let warm_options = EigenOptions {
+        max_iterations: WARM_ITERATIONS,
+        ..*options
+    };
+    let mut iterations = 0;
+    if let Ok(done) = lobpcg::iterate(
+        &ops,
+        &mut llt,
+        &start,
+        m,
+        need,
+        &warm_options,
+        &mut iterations,
+    ) {
+        let pairs = done.converged_pairs(options.tolerance);
+        let sel = select(&ops, &pairs, options.count);
+        if sel.complete && sel.rigid == previous_solution.rigid_modes {
+            let timings = SolveTimings {
+                setup_ms,
+                iterate_ms: t1.elapsed().as_secs_f64() * 1e3,
+            };
+            let mut out = solution(
+                &pairs,
+                &sel,
+                done.vectors(),
+                timings,
+                iterations,
+                SolverKind::Lobpcg,
+            );
+            out.warm_start = true;
+            return Ok(out);
+        }
+    }
+    // Slow or different (a split object, a new soft mode): cold Lanczos on the same factor.
+    let mut out = lanczos::run(&ops, &mut llt, shift, options)?;
+    out.timings.setup_ms = setup_ms;
+    out.timings.iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
+    out.iterations += iterations;
+    Ok(out)
+}
+
+/// The instant answer to an edit: Rayleigh-Ritz of the new `K`, `M` on the previous modes
+/// carried to the new mesh (with the rigid fields and the carried guard vectors), with no
+/// factorisation and no iteration: two block products and a dense eigenproblem the size of
+/// the block. A Ritz value's error is second order in its vector's error (Parlett, *The
+/// Symmetric Eigenvalue Problem*, Thm. 11.7.1), so after a brush stroke the frequencies are
+/// within about 1e-5 of exact (`cargo bench --bench interactive`); the residuals (reported)
+/// are far above the solver tolerance, so this answer is for playing while
+/// [`solve`] computes the exact one.
+pub fn ritz(
+    next: &FemModel,
+    previous: &FemModel,
+    previous_solution: &EigenSolution,
+    offset: [i64; 3],
+    count: usize,
+) -> Result<EigenSolution, EigenError> {
+    let t0 = Instant::now();
+    let ops = Operators::new(next);
+    let guards = previous_solution.guard_vectors.ncols().min(RITZ_GUARDS);
+    let old_vectors = concat_columns(
+        previous_solution.vectors.as_ref(),
+        previous_solution.guard_vectors.get(.., ..guards),
+    );
+    let carried = transfer(previous, old_vectors.as_ref(), next, offset);
+    let n = ops.dofs();
+    let w = 6 + carried.columns;
+    if w > n {
+        return Err(EigenError::TooFewDofs {
+            dofs: n,
+            wanted: count,
+        });
+    }
+    let rigid = rigid_fields(next);
+    let x = Mat::from_fn(n, w, |i, j| {
+        if j < 6 {
+            rigid[i * 6 + j]
+        } else {
+            carried.block[i * carried.columns + j - 6]
+        }
+    });
+    let kx = ops.apply_block(super::Which::K, x.as_ref());
+    let mx = ops.apply_block(super::Which::M, x.as_ref());
+    let mut gk = x.transpose() * &kx;
+    let mut gm = x.transpose() * &mx;
+    let correction =
+        edit_patch(previous, next, offset).and_then(|p| local_correction(&ops, &p, &x, &kx, &mx));
+    if let Some(cor) = &correction {
+        // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
+        // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
+        let rows = |a: &Mat<f64>| Mat::from_fn(cor.dofs.len(), w, |i, j| a[(cor.dofs[i], j)]);
+        let grow = |g: &Mat<f64>, a: &Mat<f64>, ad: &Mat<f64>| {
+            let cross = rows(a).transpose() * &cor.delta;
+            let dd = cor.delta.transpose() * ad;
+            let s = w + cor.delta.ncols();
+            Mat::from_fn(s, s, |i, j| match (i < w, j < w) {
+                (true, true) => g[(i, j)],
+                (true, false) => cross[(i, j - w)],
+                (false, true) => cross[(j, i - w)],
+                (false, false) => dd[(i - w, j - w)],
+            })
+        };
+        gk = grow(&gk, &kx, &cor.k_delta);
+        gm = grow(&gm, &mx, &cor.m_delta);
+    }
+    let want = (6 + count).min(w);
+    let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
+    let mut vectors = &x * c.get(..w, ..);
+    if let Some(cor) = &correction {
+        let local = &cor.delta * c.get(w.., ..);
+        for (i, &d) in cor.dofs.iter().enumerate() {
+            for j in 0..want {
+                vectors[(d, j)] += local[(i, j)];
+            }
+        }
+    }
+    let residuals = ops.block_residuals(&theta, vectors.as_ref());
+    let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, residuals[j])).collect();
+    let sel = select(&ops, &pairs, ModeCount::First(count));
+    if sel.rigid != previous_solution.rigid_modes {
+        // The stroke joined or split parts: the carried modes cannot describe it.
+        return Err(EigenError::BadRequest(format!(
+            "the edit changed the rigid-body mode count from {} to {}",
+            previous_solution.rigid_modes, sel.rigid
+        )));
+    }
+    let timings = SolveTimings {
+        setup_ms: 0.0,
+        iterate_ms: t0.elapsed().as_secs_f64() * 1e3,
+    };
+    let mut out = solution(
+        &pairs,
+        &sel,
+        vectors.as_ref(),
+        timings,
+        0,
+        SolverKind::Lobpcg,
+    );
+    out.warm_start = true;
+    // An approximate answer is never a warm start itself.
+    out.guard_vectors = Mat::zeros(n, 0);
+    Ok(out)
+}
+
+/// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
+/// to keep the highest wanted modes apart from the ones above them.
+const RITZ_GUARDS: usize = 8;
+
+/// Voxels (Chebyshev distance) around an edited voxel whose nodes are relaxed by
+/// [`local_correction`].
+const PATCH_RADIUS: i64 = 2;
+
+/// Largest relaxed patch, in DOFs (its dense Cholesky costs `dofs^3 / 3`).
+const MAX_PATCH_DOFS: usize = 1500;
+
+/// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
+/// added or removed. `None` if nothing changed or the patch is too large to relax densely.
+fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<Vec<usize>> {
+    use std::collections::HashSet;
+    let old: HashSet<[i64; 3]> = previous
+        .voxels
+        .iter()
+        .map(|v| [0, 1, 2].map(|a| v[a] as i64 - offset[a]))
+        .collect();
+    let new: HashSet<[i64; 3]> = next.voxels.iter().map(|v| v.map(|c| c as i64)).collect();
+    let edited: Vec<[i64; 3]> = old.symmetric_difference(&new).copied().collect();
+    if edited.is_empty() || edited.len() > 64 {
+        return None;
+    }
+    let p = next.kind.order() as i64;
+    let [lx, ly, _] = next.lattice;
+    let nodes: Vec<usize> = next
+        .node_lattice
+        .iter()
+        .enumerate()
+        .filter(|(_, &l)| {
+            let q = [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64);
+            edited.iter().any(|v| {
+                (0..3).all(|a| {
+                    q[a] >= p * (v[a] - PATCH_RADIUS) && q[a] <= p * (v[a] + 1 + PATCH_RADIUS)
+                })
+            })
+        })
+        .map(|(i, _)| i)
+        .collect();
+    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+}
+
+/// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
+struct Correction {
+    /// The patch's DOFs.
+    dofs: Vec<usize>,
+    /// One correction per carried column, on the patch DOFs.
+    delta: Mat<f64>,
+    /// `K_pp delta` and `M_pp delta`.
+    k_delta: Mat<f64>,
+    m_delta: Mat<f64>,
+}
+
+/// Static local corrections of the carried vectors: for each column `x` with Rayleigh quotient
+/// `theta`, `delta = -K_pp^-1 (K x - theta M x)_p` on the patch nodes `p`, the rest held fixed
+/// (a Dirichlet problem: one block-Jacobi step of the subdomain around the edit, as in
+/// Schwarz methods). A stroke changes the stress near it; without this the carried answer's
+/// frequencies were 0.2-0.7 % off (`tests/warm_start.rs`). `None` if `K_pp` is not positive
+/// definite (the patch is a whole part of the object).
+fn local_correction(
+    ops: &Operators,
+    patch: &[usize],
+    x: &Mat<f64>,
+    kx: &Mat<f64>,
+    mx: &Mat<f64>,
+) -> Option<Correction> {
+    let np = patch.len();
+    let mut local = vec![usize::MAX; ops.pattern.nodes()];
+    for (i, &node) in patch.iter().enumerate() {
+        local[node] = i;
+    }
+    let mut kpp = Mat::<f64>::zeros(3 * np, 3 * np);
+    let mut mpp = Mat::<f64>::zeros(3 * np, 3 * np);
+    for (i, &node) in patch.iter().enumerate() {
+        for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
+            let j = local[ops.pattern.col[b] as usize];
+            if j == usize::MAX {
+                continue;
+            }
+            for r in 0..3 {
+                for c in 0..3 {
+                    kpp[(3 * i + r, 3 * j + c)] = ops.k[b][3 * r + c];
+                    mpp[(3 * i + r, 3 * j + c)] = ops.m[b][3 * r + c];
+                }
+            }
+        }
+    }
+    let llt = kpp.llt(faer::Side::Lower).ok()?;
+    let dofs: Vec<usize> = patch
+        .iter()
+        .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
+        .collect();
+    let w = x.ncols();
+    let mut delta = Mat::<f64>::zeros(3 * np, w);
+    for j in 0..w {
+        let xkx: f64 = x
+            .col(j)
+            .iter()
+            .zip(kx.col(j).iter())
+            .map(|(a, b)| a * b)
+            .sum();
+        let xmx: f64 = x
+            .col(j)
+            .iter()
+            .zip(mx.col(j).iter())
+            .map(|(a, b)| a * b)
+            .sum();
+        let theta = xkx / xmx;
+        for (i, &d) in dofs.iter().enumerate() {
+            delta[(i, j)] = theta * mx[(d, j)] - kx[(d, j)];
+        }
+    }
+    faer::linalg::solvers::Solve::solve_in_place(&llt, delta.as_mut());
+    Some(Correction {
+        k_delta: &kpp * &delta,
+        m_delta: &mpp * &delta,
+        dofs,
+        delta,
+    })
+}
+
+/// `[a | b]`.
+fn concat_columns(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    Mat::from_fn(a.nrows(), a.ncols() + b.ncols(), |i, j| {
+        if j < a.ncols() {
+            a[(i, j)]
+        } else {
+            b[(i, j - a.ncols())]
+        }
+    })
+}
+
+/// `[rigid fields | carried modes and guards | random guards]`, row-major `n x m`.
+fn start_block(model: &FemModel, carried: &Transferred, m: usize) -> Vec<f64> {
+    let n = model.dofs();
+    let rigid = rigid_fields(model);
+    let take = carried.columns.min(m.saturating_sub(6 + RANDOM_GUARDS));
+    let random_cols = m - 6 - take;
+    let random = random_block(n, random_cols, 0x5EED);
+    let mut block = vec![0.0; n * m];
+    for i in 0..n {
+        let row = &mut block[i * m..(i + 1) * m];
+        row[..6].copy_from_slice(&rigid[i * 6..i * 6 + 6]);
+        row[6..6 + take]
+            .copy_from_slice(&carried.block[i * carried.columns..i * carried.columns + take]);
+        for j in 0..random_cols {
+            row[6 + take + j] = random[(i, j)];
+        }
+    }
+    block
+}

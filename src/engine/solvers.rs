@@ -1,0 +1,259 @@
+//! The worker's interactive solver chain: exact modes at the speed of sculpting.
+//!
+//! Where it sits: [`super::worker`] runs a chain of [`ModeSolver`]s for every edit and plays
+//! each answer as it arrives. [`interactive_solvers`] builds the chain the plugin uses:
+//! 1. [`CoarseFemSolver`], the progressive first answer: when the exact solve is predicted to
+//!    take longer than [`PROGRESSIVE_BUDGET_MS`] and the edit cannot be warm-started, the
+//!    object resampled to half the resolution ([`coarse_grid`]) is solved first (about 8x
+//!    fewer DOFs) and played, with its expected error in the status;
+//! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
+//!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
+//!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]);
+//! 3. [`IncrementalFemSolver`], the exact answer (a cold solve: warm-started LOBPCG,
+//!    [`ModeBasis::solve_warm`], measured slower, see [`IncrementalFemSolver::solve`]); it
+//!    keeps the answer for the next stroke's carried answer.
+//!
+//! The two share the last exact basis (the coarse answer never becomes a warm start).
+
+use super::worker::{ModeSolver, ObjectRequest};
+use crate::eigen::ModeCount;
+use crate::modal::{ModalError, ModeBasis, WARM_MIN_OVERLAP};
+use crate::shape::{ops, VoxelGrid};
+use std::sync::{Arc, Mutex};
+
+/// An exact solve predicted to take longer than this (ms) gets a coarse answer first.
+pub const PROGRESSIVE_BUDGET_MS: f64 = 100.0;
+
+/// Predicted one-core time of a cold exact solve, ms per DOF per wanted pair (modes plus six
+/// rigid). Fitted to `cargo bench --bench interactive` (the presets: 1.5k-16k DOFs, 60 modes,
+/// 0.9-1.2e-3 at the time of writing); an estimate for scheduling, not a promise.
+const COLD_MS_PER_DOF_PAIR: f64 = 1.0e-3;
+
+/// Mean frequency error of the coarse answer's lowest 10 modes, for the status line. Measured
+/// by `cargo bench --bench interactive` over the presets the coarse path accepts (walls of at
+/// least 2 voxels): 3-9 %. The status quotes the upper end.
+pub const COARSE_EXPECTED_ERROR: f64 = 0.1;
+
+/// Largest relative frequency error of the carried answer to a one-voxel stroke, for the
+/// status line: `cargo bench --bench interactive` measures it on every preset.
+pub const CARRIED_EXPECTED_ERROR: f64 = 1e-3;
+
+/// The last exact basis, shared by the chain.
+type Shared = Arc<Mutex<Option<Arc<ModeBasis>>>>;
+
+/// Predicted cold solve time of `grid` (ms, one core) for `count` modes.
+pub fn predicted_cold_ms(grid: &VoxelGrid, count: ModeCount) -> f64 {
+    // Nodes of a voxel object: about the voxel count plus its surface layer.
+    let voxels = grid.count() as f64;
+    let dofs = 3.0 * (voxels + 2.0 * voxels.powf(2.0 / 3.0) + voxels / 2.0);
+    let pairs = match count {
+        ModeCount::First(k) => k as f64 + 6.0,
+        ModeCount::Below(_) => 66.0,
+    };
+    COLD_MS_PER_DOF_PAIR * dofs * pairs
+}
+
+/// Agreement a coarse grid must reach with the fine one ([`coarse_grid`]): the voxels both
+/// fill over the voxels either fills, the coarse grid read at the fine resolution. A wall one
+/// voxel thick that comes back two thick scores 0.5 or less.
+const COARSE_MIN_AGREEMENT: f64 = 0.7;
+
+/// `grid` resampled to half the resolution (the voxel edge doubles, the extent stays), or
+/// `None` where halving would change the object too much to be a useful first answer: a
+/// coarse voxel is solid when at least `t` of its (up to 8) fine voxels are, with `t` chosen
+/// to agree best with the fine grid; the result must keep the object's face-connected
+/// component count and agree on [`COARSE_MIN_AGREEMENT`] of the voxels (intersection over
+/// union). Walls one voxel thick do not survive halving (those objects wait for the exact
+/// answer, or the neural predictor).
+pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
+    let d = grid.dims();
+    let cd = d.map(|v| v.div_ceil(2));
+    if cd.iter().any(|&v| v < 2) {
+        return None;
+    }
+    let cell = |[x, y, z]: [usize; 3]| x / 2 + cd[0] * (y / 2 + cd[1] * (z / 2));
+    let mut fill = vec![0u8; cd.iter().product()];
+    // Fine voxels (inside the fine grid) each coarse cell covers.
+    let mut covered = vec![0u8; fill.len()];
+    for z in 0..d[2] {
+        for y in 0..d[1] {
+            for x in 0..d[0] {
+                covered[cell([x, y, z])] += 1;
+            }
+        }
+    }
+    for v in grid.solid_voxels() {
+        fill[cell(v)] += 1;
+    }
+    // Intersection over union of the fine grid and the coarse grid with threshold t.
+    let agreement = |t: u8| {
+        let (mut both, mut either) = (0usize, 0usize);
+        for (&f, &c) in fill.iter().zip(&covered) {
+            let (f, c) = (f as usize, c as usize);
+            if f >= t as usize {
+                both += f;
+                either += c;
+            } else {
+                either += f;
+            }
+        }
+        both as f64 / either.max(1) as f64
+    };
+    let t = (1..=8u8)
+        .max_by(|&a, &b| agreement(a).total_cmp(&agreement(b)))
+        .expect("thresholds");
+    if agreement(t) < COARSE_MIN_AGREEMENT {
+        return None;
+    }
+    let mut coarse = VoxelGrid::new(cd, 2.0 * grid.voxel_size_m()).ok()?;
+    for z in 0..cd[2] {
+        for y in 0..cd[1] {
+            for x in 0..cd[0] {
+                coarse.set(x, y, z, fill[x + cd[0] * (y + cd[1] * z)] >= t);
+            }
+        }
+    }
+    (coarse.count() > 0 && ops::components(&coarse).1 == ops::components(grid).1).then_some(coarse)
+}
+
+/// Whether `request` is a small edit of `previous` that [`ModeBasis::solve_warm`] refines.
+fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
+    let old = &previous.model;
+    if old.kind != request.element || old.poisson_ratio != request.poisson_ratio {
+        return false;
+    }
+    let (count, before) = (request.grid.count() as f64, old.voxels.len() as f64);
+    (count - before).abs() <= (1.0 - WARM_MIN_OVERLAP) * count.max(before)
+}
+
+/// The exact FEM answer; it keeps the last one for the chain's faster answers to start from.
+pub struct IncrementalFemSolver {
+    last: Shared,
+}
+
+impl IncrementalFemSolver {
+    /// A solver with no previous answer.
+    pub fn new() -> Self {
+        IncrementalFemSolver {
+            last: Arc::new(Mutex::new(None)),
+        }
+    }
+}
+
+impl Default for IncrementalFemSolver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn lock(shared: &Shared) -> std::sync::MutexGuard<'_, Option<Arc<ModeBasis>>> {
+    shared.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl ModeSolver for IncrementalFemSolver {
+    fn name(&self) -> &'static str {
+        "fem"
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+        let previous = lock(&self.last).clone();
+        let basis = match previous {
+            Some(p)
+                if p.shape_hash == r.grid.shape_hash()
+                    && p.model.kind == r.element
+                    && p.model.poisson_ratio == r.poisson_ratio
+                    && r.options.count == ModeCount::First(p.mode_count()) =>
+            {
+                // Only the solver choice changed: the modes are the same.
+                (*p).clone()
+            }
+            // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-5 LOBPCG
+            // iterations, but each one's Rayleigh-Ritz step costs more than the whole Lanczos
+            // solve on the same factor: measured slower on 10 of the 13 objects of
+            // `cargo bench --bench interactive`. The exact answer is solved cold; the instant
+            // answer to a stroke comes from `CarriedRitzSolver`.
+            _ => ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?,
+        };
+        *lock(&self.last) = Some(Arc::new(basis.clone()));
+        Ok(basis)
+    }
+}
+
+fn count_of(r: &ObjectRequest) -> usize {
+    match r.options.count {
+        ModeCount::First(k) => k,
+        ModeCount::Below(_) => 0,
+    }
+}
+
+/// The progressive first answer: the object at half resolution (see the module docs).
+pub struct CoarseFemSolver {
+    last: Shared,
+}
+
+impl ModeSolver for CoarseFemSolver {
+    fn name(&self) -> &'static str {
+        "coarse"
+    }
+
+    fn applies(&self, r: &ObjectRequest) -> bool {
+        if let Some(p) = lock(&self.last).as_ref() {
+            if warm_candidate(p, r) {
+                return false;
+            }
+        }
+        predicted_cold_ms(&r.grid, r.options.count) > PROGRESSIVE_BUDGET_MS
+            && coarse_grid(&r.grid).is_some()
+    }
+
+    fn expected_error(&self) -> Option<f64> {
+        Some(COARSE_EXPECTED_ERROR)
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+        let grid = coarse_grid(&r.grid).ok_or(ModalError::NoCoarseGrid)?;
+        ModeBasis::solve(&grid, r.element, r.poisson_ratio, r.solver, &r.options)
+    }
+}
+
+/// The instant answer to a brush stroke: the last exact modes carried to the edited shape and
+/// re-balanced by Rayleigh-Ritz ([`ModeBasis::carried_ritz`]), while the exact solve runs.
+pub struct CarriedRitzSolver {
+    last: Shared,
+}
+
+impl ModeSolver for CarriedRitzSolver {
+    fn name(&self) -> &'static str {
+        "carried"
+    }
+
+    fn applies(&self, r: &ObjectRequest) -> bool {
+        matches!(r.options.count, ModeCount::First(_))
+            && lock(&self.last)
+                .as_ref()
+                .is_some_and(|p| warm_candidate(p, r) && p.shape_hash != r.grid.shape_hash())
+    }
+
+    fn expected_error(&self) -> Option<f64> {
+        Some(CARRIED_EXPECTED_ERROR)
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+        let previous = lock(&self.last).clone().ok_or(ModalError::NoPrevious)?;
+        ModeBasis::carried_ritz(&r.grid, r.element, r.poisson_ratio, count_of(r), &previous)
+            .unwrap_or(Err(ModalError::NoPrevious))
+    }
+}
+
+/// The plugin's chain: [`CoarseFemSolver`] (slow cold solves), [`CarriedRitzSolver`] (brush
+/// strokes), then [`IncrementalFemSolver`] (exact), sharing the last exact answer.
+pub fn interactive_solvers() -> Vec<Box<dyn ModeSolver>> {
+    let exact = IncrementalFemSolver::new();
+    let coarse = CoarseFemSolver {
+        last: exact.last.clone(),
+    };
+    let carried = CarriedRitzSolver {
+        last: exact.last.clone(),
+    };
+    vec![Box::new(coarse), Box::new(carried), Box::new(exact)]
+}
