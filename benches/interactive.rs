@@ -46,6 +46,10 @@ fn objects(quick: bool) -> Vec<(String, String, f64)> {
     if quick {
         return out;
     }
+    // Larger thick-walled and solid objects, where the coarse first answer applies.
+    let steel = Material::preset("steel").expect("steel").poisson_ratio;
+    out.push(("sphere d=24".into(), "sphere:d=24".into(), steel));
+    out.push(("bowl d=32 w=4".into(), "bowl:d=32,wall=4".into(), glass));
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/presets/objects");
     let mut files: Vec<_> = std::fs::read_dir(dir)
         .expect("presets")

@@ -29,14 +29,15 @@ pub const PROGRESSIVE_BUDGET_MS: f64 = 100.0;
 /// 0.9-1.2e-3 at the time of writing); an estimate for scheduling, not a promise.
 const COLD_MS_PER_DOF_PAIR: f64 = 1.0e-3;
 
-/// Mean frequency error of the coarse answer's lowest 10 modes, for the status line. Measured
-/// by `cargo bench --bench interactive` over the presets the coarse path accepts (walls of at
-/// least 2 voxels): 3-9 %. The status quotes the upper end.
-pub const COARSE_EXPECTED_ERROR: f64 = 0.1;
+/// Mean frequency error of the coarse answer's lowest 10 modes, for the status line, measured
+/// by `cargo bench --bench interactive` on the objects the coarse path accepts (solid and
+/// thick-walled ones; the presets' thin walls are refused).
+pub const COARSE_EXPECTED_ERROR: f64 = 0.05;
 
-/// Largest relative frequency error of the carried answer to a one-voxel stroke, for the
-/// status line: `cargo bench --bench interactive` measures it on every preset.
-pub const CARRIED_EXPECTED_ERROR: f64 = 1e-3;
+/// Typical largest relative frequency error of the carried answer to a one-voxel stroke, for
+/// the status line: `cargo bench --bench interactive` measures 1e-5 to 3e-3 on the presets (a
+/// stroke that opens a hole in a one-voxel wall can do worse until the exact answer lands).
+pub const CARRIED_EXPECTED_ERROR: f64 = 3e-3;
 
 /// The last exact basis, shared by the chain.
 type Shared = Arc<Mutex<Option<Arc<ModeBasis>>>>;
@@ -73,26 +74,19 @@ pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
     }
     let cell = |[x, y, z]: [usize; 3]| x / 2 + cd[0] * (y / 2 + cd[1] * (z / 2));
     let mut fill = vec![0u8; cd.iter().product()];
-    // Fine voxels (inside the fine grid) each coarse cell covers.
-    let mut covered = vec![0u8; fill.len()];
-    for z in 0..d[2] {
-        for y in 0..d[1] {
-            for x in 0..d[0] {
-                covered[cell([x, y, z])] += 1;
-            }
-        }
-    }
     for v in grid.solid_voxels() {
         fill[cell(v)] += 1;
     }
-    // Intersection over union of the fine grid and the coarse grid with threshold t.
+    // Intersection over union of the fine grid and the coarse grid with threshold t; a coarse
+    // voxel always covers 8 fine ones (past an odd edge of the grid, empty ones: a bar 3
+    // voxels thick that comes back 4 thick disagrees).
     let agreement = |t: u8| {
         let (mut both, mut either) = (0usize, 0usize);
-        for (&f, &c) in fill.iter().zip(&covered) {
-            let (f, c) = (f as usize, c as usize);
+        for &f in &fill {
+            let f = f as usize;
             if f >= t as usize {
                 both += f;
-                either += c;
+                either += 8;
             } else {
                 either += f;
             }
