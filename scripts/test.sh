@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # The whole test suite: the Rust tests (library, CLI, engine, FEM accuracy), then the plugin
 # bundles in a real third-party host (scripts/plugin-host-test.sh), then the plugin's own tests.
+# The Rust tests run in the release profile: the plugin bundle and the `modalforge` binary the
+# host test needs are release builds too, so the dependency tree (faer above all) compiles once
+# instead of twice (the test profile is a separate build of every dependency).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo test --locked
+cargo test --locked --release
 bash scripts/plugin-host-test.sh
 cargo test --locked --release -p modalforge-plugin
