@@ -162,6 +162,10 @@ pub struct EigenSolution {
     /// a warm start of the next edit starts its guard columns from them ([`warm`]), so the
     /// highest wanted modes converge as fast as the lowest.
     pub guard_vectors: Mat<f64>,
+    /// The rigid-body modes found (M-orthonormal, one column each; `rigid_modes` of them): a
+    /// warm start carries them for objects whose parts touch only along edges or corners,
+    /// which have more than the six rigid motions of a whole.
+    pub rigid_vectors: Mat<f64>,
 }
 
 /// Guard vectors a solution keeps for warm starts, for `need` wanted pairs (rigid included).
@@ -435,7 +439,12 @@ pub(crate) fn solution(
         .ncols()
         .saturating_sub(after)
         .min(warm_guard(selection.rigid + keep.len()));
+    // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
+    let rigid_columns: Vec<usize> = pairs.iter().take(selection.rigid).map(|p| p.1).collect();
     EigenSolution {
+        rigid_vectors: Mat::from_fn(x.nrows(), rigid_columns.len(), |i, j| {
+            x[(i, rigid_columns[j])]
+        }),
         guard_vectors: x.get(.., after..after + guards).to_owned(),
         eigenvalues: keep.iter().map(|&i| pairs[i].0).collect(),
         vectors: Mat::from_fn(x.nrows(), keep.len(), |i, j| x[(i, pairs[keep[j]].1)]),

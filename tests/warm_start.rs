@@ -148,3 +148,56 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
         previous = warm;
     }
 }
+
+#[test]
+fn parts_touching_along_an_edge_keep_their_seven_rigid_modes() {
+    // Two 4-voxel cubes sharing one edge: 7 rigid-body modes (6 + a hinge). The carried
+    // answer and the warm solve carry the previous rigid modes instead of the six rigid fields
+    // of a whole.
+    let mut grid = VoxelGrid::new([8, 8, 4], 1.0).unwrap();
+    for z in 0..4 {
+        for y in 0..4 {
+            for x in 0..4 {
+                grid.set(x, y, z, true);
+                grid.set(x + 4, y + 4, z, true);
+            }
+        }
+    }
+    let options = EigenOptions {
+        count: ModeCount::First(20),
+        ..Default::default()
+    };
+    let solve = |g: &VoxelGrid| {
+        ModeBasis::solve(
+            g,
+            ElementKind::Hex8Incompatible,
+            NU,
+            SolverKind::Lanczos,
+            &options,
+        )
+        .expect("cold")
+    };
+    let before = solve(&grid);
+    assert_eq!(before.solution.rigid_modes, 7);
+    assert_eq!(before.solution.rigid_vectors.ncols(), 7);
+    grid.set(0, 0, 3, false);
+    let reference = solve(&grid);
+    let carried = ModeBasis::carried_ritz(&grid, ElementKind::Hex8Incompatible, NU, 20, &before)
+        .expect("comparable")
+        .expect("a carried answer");
+    assert_eq!(carried.solution.rigid_modes, 7);
+    let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
+    assert!(err < 3e-3, "carried vs cold: {err:.1e}");
+    let warm = ModeBasis::solve_warm(
+        &grid,
+        ElementKind::Hex8Incompatible,
+        NU,
+        SolverKind::Auto,
+        &options,
+        &before,
+    )
+    .expect("warm");
+    assert!(warm.solution.warm_start);
+    let err = worst_relative(&frequencies(&warm), &frequencies(&reference));
+    assert!(err < 1e-6, "warm vs cold: {err:.1e}");
+}

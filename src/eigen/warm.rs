@@ -1,27 +1,29 @@
-//! Warm starts: the modes of a sculpting edit, refined from the modes of the shape before it.
+//! Warm starts: the modes of a sculpting edit, from the modes of the shape before it.
 //!
 //! Where it sits: beside [`super::lanczos`] and [`super::lobpcg`], behind the same contract
 //! ([`EigenOptions`] in, [`EigenSolution`] out, the residual criterion of NeuralSound, seed 001
-//! eq. 6). [`crate::modal::ModeBasis::solve_warm`] calls it with the previous solved shape; the
-//! engine's [`crate::engine::IncrementalFemSolver`] does so for every edit that keeps most of
-//! the object.
+//! eq. 6). Two answers start from the previous shape's solution:
+//! - [`ritz`], the instant one ([`crate::modal::ModeBasis::carried_ritz`], played by the
+//!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
+//!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation;
+//! - [`solve`], the exact one ([`crate::modal::ModeBasis::solve_warm`]): the carried block
+//!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
+//!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
 //!
-//! The method (the "mixed solver" idea of NeuralSound, seed 001 sec. 4: a good start block
-//! makes an iterative eigensolver converge in a few steps):
+//! [`solve`] step by step (the "mixed solver" idea of NeuralSound, seed 001 sec. 4: a good
+//! start block makes an iterative eigensolver converge in a few steps):
 //! 1. [`transfer`] carries the previous eigenvectors to the new mesh: a node that persists
 //!    keeps its values, a new node takes the mean of its persisting lattice neighbours. The
-//!    two voxel sets are aligned first (a brush stroke at the edge of the object moves the
-//!    cropped grid's origin).
+//!    two voxel sets are aligned first ([`align`]: a brush stroke at the edge of the object
+//!    moves the cropped grid's origin).
 //! 2. The start block is the six rigid-body fields, the carried modes, the carried guard
 //!    vectors (the previous solve's next Ritz vectors, [`EigenSolution::guard_vectors`]: with
-//!    them the highest wanted modes converge as fast as the lowest; random guards made them
-//!    take 7-8 iterations) and a few random columns (they let a mode the old shape did not
-//!    have, say a loose voxel's flapping, grow in).
+//!    random guards instead the highest wanted modes took 7-8 iterations) and a few random
+//!    columns (they let a mode the old shape did not have, say a loose voxel's flapping,
+//!    grow in).
 //! 3. LOBPCG ([`super::lobpcg::iterate`]) refines the block with the exact shift-invert
-//!    preconditioner, a sparse Cholesky factor of the new `K - sigma M`. From a start that is
-//!    right everywhere but near the edit, the first step removes the local error (it lies
-//!    along stiff, high modes that the inverse damps by orders of magnitude) and the
-//!    Rayleigh-Ritz step rotates within the wanted modes: two or three iterations.
+//!    preconditioner, a sparse Cholesky factor of the new `K - sigma M`: 2-5 iterations on
+//!    one-voxel strokes of the presets (8 on the steel bar).
 //! 4. A start that does not converge within [`WARM_ITERATIONS`], or that finds a different
 //!    number of rigid-body modes (the edit split the object), falls back to shift-invert
 //!    Lanczos on the same factor: a cold solve, no slower than without the warm start but for
@@ -39,8 +41,8 @@ use faer::{Mat, MatRef, Par};
 use std::time::Instant;
 
 /// LOBPCG iterations a warm start may take before the solve falls back to Lanczos. Measured
-/// (`cargo bench --bench interactive`): one-voxel edits of the presets converge in 2-4.
-pub const WARM_ITERATIONS: usize = 8;
+/// (`cargo bench --bench interactive`): one-voxel edits of the presets converge in 2-8.
+pub const WARM_ITERATIONS: usize = 10;
 
 /// Random columns at the end of the start block: a mode the previous shape did not have
 /// (a loose voxel's flapping) grows in from them.
@@ -191,11 +193,16 @@ pub fn solve(
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(next, shift, m.max(options.block_size), Par::Seq)?;
     let old_vectors = concat_columns(
-        previous_solution.vectors.as_ref(),
-        previous_solution.guard_vectors.as_ref(),
+        extra_rigid(previous_solution).as_ref(),
+        concat_columns(
+            previous_solution.vectors.as_ref(),
+            previous_solution.guard_vectors.as_ref(),
+        )
+        .as_ref(),
     );
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
-    let start = start_block(next, &carried, m);
+    let fields = extra_rigid(previous_solution).ncols() == 0;
+    let start = start_block(next, &carried, m, fields);
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
     let warm_options = EigenOptions {
@@ -258,8 +265,12 @@ pub fn ritz(
     let ops = Operators::new(next);
     let guards = previous_solution.guard_vectors.ncols().min(RITZ_GUARDS);
     let old_vectors = concat_columns(
-        previous_solution.vectors.as_ref(),
-        previous_solution.guard_vectors.get(.., ..guards),
+        extra_rigid(previous_solution).as_ref(),
+        concat_columns(
+            previous_solution.vectors.as_ref(),
+            previous_solution.guard_vectors.get(.., ..guards),
+        )
+        .as_ref(),
     );
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
     let n = ops.dofs();
@@ -270,12 +281,19 @@ pub fn ritz(
             wanted: count,
         });
     }
+    // The exact rigid fields, unless the previous rigid modes (more than six) are carried.
+    let fields = if extra_rigid(previous_solution).ncols() > 0 {
+        0
+    } else {
+        6
+    };
+    let w = fields + carried.columns;
     let rigid = rigid_fields(next);
     let x = Mat::from_fn(n, w, |i, j| {
-        if j < 6 {
+        if j < fields {
             rigid[i * 6 + j]
         } else {
-            carried.block[i * carried.columns + j - 6]
+            carried.block[i * carried.columns + j - fields]
         }
     });
     let kx = ops.apply_block(super::Which::K, x.as_ref());
@@ -302,7 +320,7 @@ pub fn ritz(
         gk = grow(&gk, &kx, &cor.k_delta);
         gm = grow(&gm, &mx, &cor.m_delta);
     }
-    let want = (6 + count).min(w);
+    let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
     let mut vectors = &x * c.get(..w, ..);
     if let Some(cor) = &correction {
@@ -464,6 +482,17 @@ fn local_correction(
     })
 }
 
+/// The previous rigid-body modes when there are more than the six motions of a whole (parts
+/// touching along edges or corners); empty otherwise (the exact rigid fields serve).
+fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
+    let r = &previous.rigid_vectors;
+    if r.ncols() > 6 {
+        r.as_ref()
+    } else {
+        r.get(.., 0..0)
+    }
+}
+
 /// `[a | b]`.
 fn concat_columns(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     Mat::from_fn(a.nrows(), a.ncols() + b.ncols(), |i, j| {
@@ -475,21 +504,23 @@ fn concat_columns(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     })
 }
 
-/// `[rigid fields | carried modes and guards | random guards]`, row-major `n x m`.
-fn start_block(model: &FemModel, carried: &Transferred, m: usize) -> Vec<f64> {
+/// `[rigid fields (if `fields`) | carried modes and guards | random guards]`, row-major
+/// `n x m`.
+fn start_block(model: &FemModel, carried: &Transferred, m: usize, fields: bool) -> Vec<f64> {
     let n = model.dofs();
     let rigid = rigid_fields(model);
-    let take = carried.columns.min(m.saturating_sub(6 + RANDOM_GUARDS));
-    let random_cols = m - 6 - take;
+    let f = if fields { 6 } else { 0 };
+    let take = carried.columns.min(m.saturating_sub(f + RANDOM_GUARDS));
+    let random_cols = m - f - take;
     let random = random_block(n, random_cols, 0x5EED);
     let mut block = vec![0.0; n * m];
     for i in 0..n {
         let row = &mut block[i * m..(i + 1) * m];
-        row[..6].copy_from_slice(&rigid[i * 6..i * 6 + 6]);
-        row[6..6 + take]
+        row[..f].copy_from_slice(&rigid[i * 6..i * 6 + f]);
+        row[f..f + take]
             .copy_from_slice(&carried.block[i * carried.columns..i * carried.columns + take]);
         for j in 0..random_cols {
-            row[6 + take + j] = random[(i, j)];
+            row[f + take + j] = random[(i, j)];
         }
     }
     block

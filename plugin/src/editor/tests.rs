@@ -256,3 +256,87 @@ fn presets_save_and_load_through_files() {
     assert!(e.contains("x.toml"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A stand-in approximate answer (the exact modes, labelled approximate) and a slow exact one,
+/// so the status line can be read while the exact answer is still being solved.
+struct Labelled {
+    name: &'static str,
+    error: Option<f64>,
+    delay_ms: u64,
+}
+
+impl modalforge::engine::ModeSolver for Labelled {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn expected_error(&self) -> Option<f64> {
+        self.error
+    }
+    fn solve(
+        &mut self,
+        r: &modalforge::engine::ObjectRequest,
+    ) -> Result<modalforge::modal::ModeBasis, modalforge::modal::ModalError> {
+        use modalforge::engine::ModeSolver;
+        std::thread::sleep(std::time::Duration::from_millis(self.delay_ms));
+        modalforge::engine::FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn the_status_line_says_which_answer_plays_and_its_error() {
+    use modalforge::engine::{Engine, EngineConfig, ModeSolver};
+    let app = app_with(block([6, 3, 3]));
+    let material = modalforge::material::Material::preset("steel").unwrap();
+    let voicing = Voicing::from_material(&material, 0.2).unwrap();
+    let solvers: Vec<Box<dyn ModeSolver>> = vec![
+        Box::new(Labelled {
+            name: "carried",
+            error: Some(modalforge::engine::CARRIED_EXPECTED_ERROR),
+            delay_ms: 0,
+        }),
+        Box::new(Labelled {
+            name: "fem",
+            error: None,
+            delay_ms: 1500,
+        }),
+    ];
+    let (_audio, control) =
+        Engine::start(48_000.0, EngineConfig::default(), voicing, solvers).expect("engine");
+    let control = Arc::new(control);
+    *app.link.control.lock().unwrap() = Some(control.clone());
+    let grid = modalforge::shape::VoxelGrid::from_fn([6, 3, 3], 0.01, |_, _, _| true).unwrap();
+    control.request(modalforge::engine::ObjectRequest {
+        grid,
+        element: modalforge::fem::ElementKind::Hex8Incompatible,
+        poisson_ratio: material.poisson_ratio,
+        solver: modalforge::eigen::SolverKind::Lanczos,
+        options: modalforge::eigen::EigenOptions {
+            count: modalforge::eigen::ModeCount::First(10),
+            ..Default::default()
+        },
+    });
+    // The approximate answer lands first; the status says so while the exact one is solved.
+    let start = std::time::Instant::now();
+    let mut seen = None;
+    while start.elapsed() < std::time::Duration::from_secs(20) {
+        let (line, _) = app.status_line();
+        if line.contains("solving") && line.contains("playing") {
+            seen = Some(line);
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let seen = seen.expect("a status line naming the approximate answer");
+    assert!(
+        seen.starts_with("playing the carried answer (within ~0.3 %) · solving..."),
+        "{seen}"
+    );
+    assert!(control.wait_idle(std::time::Duration::from_secs(20)));
+    let (line, error) = app.status_line();
+    assert!(!error);
+    assert!(line.starts_with("10 modes solved in"), "{line}");
+    assert!(
+        line.contains("(fem)") && !line.contains("playing"),
+        "{line}"
+    );
+}
