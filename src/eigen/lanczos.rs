@@ -257,7 +257,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
 /// What a convergence check found.
 enum Check {
     /// Every wanted pair has converged: the answer.
-    Done(EigenSolution),
+    Done(Box<EigenSolution>),
     /// Not yet: the number of leading pairs that converged and the residual of the next one.
     Converged(usize, f64),
 }
@@ -355,14 +355,14 @@ impl RitzCheck<'_> {
             setup_ms: 0.0,
             iterate_ms: self.started.elapsed().as_secs_f64() * 1e3,
         };
-        Ok(Check::Done(solution(
+        Ok(Check::Done(Box::new(solution(
             &pairs,
             &sel,
             x.as_ref(),
             timings,
             self.restarts,
             super::SolverKind::Lanczos,
-        )))
+        ))))
     }
 }
 
@@ -423,7 +423,7 @@ pub fn run(
             };
             if basis.len >= first_check(nev, b) {
                 match checker.run(&basis, &h, cols.clone(), (&q, &mq, &r))? {
-                    Check::Done(solution) => return Ok(solution),
+                    Check::Done(solution) => return Ok(*solution),
                     Check::Converged(..) => {}
                 }
             }
@@ -444,7 +444,7 @@ pub fn run(
         // The estimates can be pessimistic: a full basis is always checked explicitly.
         let check = nev.min(order.len());
         let rigid = match checker.verify(&basis, &theta, &y, &order[..check])? {
-            Check::Done(solution) => return Ok(solution),
+            Check::Done(solution) => return Ok(*solution),
             Check::Converged(c, w) => {
                 (converged_count, worst) = (c, w);
                 let lambdas: Vec<f64> =
