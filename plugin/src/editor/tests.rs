@@ -276,7 +276,6 @@ impl modalforge::engine::ModeSolver for Labelled {
         &mut self,
         r: &modalforge::engine::ObjectRequest,
     ) -> Result<modalforge::modal::ModeBasis, modalforge::modal::ModalError> {
-        use modalforge::engine::ModeSolver;
         std::thread::sleep(std::time::Duration::from_millis(self.delay_ms));
         modalforge::engine::FemSolver.solve(r)
     }
