@@ -5,7 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bundle.sh
-cargo build --release --locked --bin modalforge
+# `--tests` resolves features as `cargo test --release` does (dev-dependencies included), so
+# after scripts/test.sh's test run this builds nothing; a plain `--bin` build recompiled faer.
+cargo build --release --locked --bin modalforge --tests
 VENV=target/host-venv
 if [ ! -x "$VENV/bin/python" ]; then
   python3 -m venv "$VENV" || { apt-get update -qq && apt-get install -y -qq python3-venv && python3 -m venv "$VENV"; }
