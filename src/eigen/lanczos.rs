@@ -22,7 +22,7 @@ use super::{
 };
 use crate::fem::FemModel;
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, Par};
+use faer::{Accum, Mat, MatRef, Par};
 use std::time::Instant;
 
 /// The shift as a fraction of `trace K / trace M`; below the softest mode of most objects, and
@@ -74,21 +74,46 @@ impl Basis {
         }
         let v = self.v.get(.., ..self.len);
         let mv = self.mv.get(.., ..self.len);
-        let mut c = Mat::<f64>::zeros(self.len, w.ncols());
+        // In transposed form (`C^T = W^T (M V)`, `W^T -= C^T V^T`) the small block is the
+        // left operand, which the matrix product packs; the basis is read in place.
+        let mut ct = Mat::<f64>::zeros(w.ncols(), self.len);
         for _ in 0..2 {
             matmul(
-                c.as_mut(),
+                ct.as_mut(),
                 Accum::Replace,
-                mv.transpose(),
-                w.as_ref(),
+                w.transpose(),
+                mv,
                 1.0,
                 Par::Seq,
             );
-            matmul(w.as_mut(), Accum::Add, v, c.as_ref(), -1.0, Par::Seq);
-            total += &c;
+            matmul(
+                w.as_mut().transpose_mut(),
+                Accum::Add,
+                ct.as_ref(),
+                v.transpose(),
+                -1.0,
+                Par::Seq,
+            );
+            total += ct.transpose();
         }
         total
     }
+}
+
+/// `V Y` for a tall basis `V` (`n x len`) and a small `Y`, computed as `(Y^T V^T)^T` so the
+/// matrix product packs the small operand and reads the basis in place (packing the basis
+/// on every product cost a tenth of a solve).
+fn tall_times_small(v: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(v.nrows(), y.ncols());
+    matmul(
+        out.as_mut().transpose_mut(),
+        Accum::Replace,
+        y.transpose(),
+        v.transpose(),
+        1.0,
+        Par::Seq,
+    );
+    out
 }
 
 /// `(Q, M Q, R)` of a block M-QR factorisation.
@@ -332,7 +357,7 @@ impl RitzCheck<'_> {
         let all: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
         let width = (check + super::warm_guard(self.nev)).min(all.len());
         let ysel = Mat::from_fn(len, width, |i, j| y[(i, all[j])]);
-        let x = basis.v.get(.., 0..len) * &ysel;
+        let x = tall_times_small(basis.v.get(.., 0..len), ysel.as_ref());
         let lambdas: Vec<f64> = order.iter().map(|&o| self.shift + 1.0 / theta[o]).collect();
         let res = self.ops.block_residuals(&lambdas, x.get(.., 0..check));
         let mut pairs = Vec::with_capacity(order.len());
@@ -481,8 +506,8 @@ pub fn run(
             .min(order.len())
             .min(basis.cap() - 2 * q_res.ncols());
         let yk = Mat::from_fn(len, keep_n, |i, j| y[(i, order[j])]);
-        let xk = basis.v.get(.., 0..len) * &yk;
-        let mxk = basis.mv.get(.., 0..len) * &yk;
+        let xk = tall_times_small(basis.v.get(.., 0..len), yk.as_ref());
+        let mxk = tall_times_small(basis.mv.get(.., 0..len), yk.as_ref());
         // Residual coupling: Op x_j - theta_j x_j = Q (R y_j[last rows]).
         let y_last = Mat::from_fn(last.len(), keep_n, |i, j| y[(last.start + i, order[j])]);
         let coupling = &r_res * &y_last;
