@@ -64,9 +64,10 @@ pub enum SolverKind {
     Lobpcg,
     /// LOBPCG for models of at least [`AUTO_LOBPCG_DOFS`] DOFs asked for at most
     /// [`AUTO_LOBPCG_MAX_MODES`] modes at a residual it reaches (>= 1e-7); Lanczos otherwise.
-    /// Measured (`cargo bench --bench eigen -- --table`): the 32^3 sphere (59k DOFs, 20 modes)
-    /// takes 3.7 s by LOBPCG and 19 s by Lanczos, the 32^3 bowl (15k DOFs) 1.0 s and 1.5 s, but
-    /// for 80 modes of the bowl Lanczos wins (4.5 s against 6.3 s).
+    /// Measured (`modalforge modes --solver ...`, one core, hex8i, 20 modes): the 32^3 sphere
+    /// (59k DOFs) takes 2.1 s by LOBPCG and 8.2 s by Lanczos, the 32^3 bowl (15k DOFs) 0.42 s
+    /// and 0.56 s; for many modes Lanczos wins (80 modes of the bowl, before Lanczos was
+    /// made faster: 4.5 s against 6.3 s).
     Auto,
 }
 

@@ -161,11 +161,11 @@ impl ModeSolver for IncrementalFemSolver {
                 // Only the solver choice changed: the modes are the same.
                 (*p).clone()
             }
-            // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-5 LOBPCG
-            // iterations, but each one's Rayleigh-Ritz step costs more than the whole Lanczos
-            // solve on the same factor: measured slower on 10 of the 13 objects of
-            // `cargo bench --bench interactive`. The exact answer is solved cold; the instant
-            // answer to a stroke comes from `CarriedRitzSolver`.
+            // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
+            // iterations, but they cost about as much as the whole Lanczos solve on the same
+            // factor: measured slower on most objects of `cargo bench --bench interactive`.
+            // The exact answer is solved cold; the instant answer to a stroke comes from
+            // `CarriedRitzSolver`.
             _ => ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?,
         };
         *lock(&self.last) = Some(Arc::new(basis.clone()));
