@@ -25,8 +25,9 @@ use std::sync::{Arc, Mutex};
 pub const PROGRESSIVE_BUDGET_MS: f64 = 100.0;
 
 /// Predicted one-core time of a cold exact solve, ms per DOF per wanted pair (modes plus six
-/// rigid). Fitted to `cargo bench --bench interactive` (the presets: 1.5k-16k DOFs, 60 modes,
-/// 0.9-1.2e-3 at the time of writing); an estimate for scheduling, not a promise.
+/// rigid). Fitted to `cargo bench --bench interactive` (60 modes: 0.6-1.0e-3 on the presets,
+/// 1.1k-16k DOFs; 2.7e-3 on a solid 24^3 sphere, whose factor is denser); an estimate for
+/// scheduling, not a promise.
 const COLD_MS_PER_DOF_PAIR: f64 = 1.0e-3;
 
 /// Mean frequency error of the coarse answer's lowest 10 modes, for the status line, measured
@@ -150,24 +151,12 @@ impl ModeSolver for IncrementalFemSolver {
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
-        let previous = lock(&self.last).clone();
-        let basis = match previous {
-            Some(p)
-                if p.shape_hash == r.grid.shape_hash()
-                    && p.model.kind == r.element
-                    && p.model.poisson_ratio == r.poisson_ratio
-                    && r.options.count == ModeCount::First(p.mode_count()) =>
-            {
-                // Only the solver choice changed: the modes are the same.
-                (*p).clone()
-            }
-            // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
-            // iterations, but they cost about as much as the whole Lanczos solve on the same
-            // factor: measured slower on most objects of `cargo bench --bench interactive`.
-            // The exact answer is solved cold; the instant answer to a stroke comes from
-            // `CarriedRitzSolver`.
-            _ => ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?,
-        };
+        // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
+        // iterations, but they cost about as much as the whole Lanczos solve on the same
+        // factor: measured slower on most objects of `cargo bench --bench interactive`. The
+        // exact answer is solved cold; the instant answer to a stroke comes from
+        // `CarriedRitzSolver`.
+        let basis = ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?;
         *lock(&self.last) = Some(Arc::new(basis.clone()));
         Ok(basis)
     }
