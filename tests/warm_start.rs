@@ -2,8 +2,10 @@
 //! solves of the same edited shape (an independent computation from a random start).
 //!
 //! Tolerances: both exact solves stop at the residual 1e-6 (seed 001 eq. 6); an eigenvalue's
-//! error is bounded by the residual squared over the gap (Parlett, Thm. 11.7.1), about 1e-9
-//! relative for these bowls, so two exact answers agree to well under 1e-6 in frequency.
+//! error is bounded by the residual squared over the gap (Parlett, Thm. 11.7.1), so two exact
+//! answers agree to well under 1e-6 in frequency (measured 1.2e-9 here). The carried answer is
+//! not exact: its frequencies must be within 1e-3 (measured ~1e-4 here; the bench sees 1e-5
+//! to 3e-3 on the presets), the ten-times margin a stated expectation allows.
 
 use modalforge::eigen::warm;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
@@ -135,6 +137,7 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
         assert!(warm.solution.warm_start, "a one-voxel edit is warm-started");
         let reference = cold(&grid);
         let err = worst_relative(&frequencies(&warm), &frequencies(&reference));
+        eprintln!("warm vs cold: {err:.1e}");
         assert!(err < 1e-6, "warm vs cold: {err:.1e}");
         assert!(warm.solution.residuals.iter().all(|&r| r <= 1e-6));
         // The instant answer: close, not exact.
@@ -144,7 +147,7 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
                 .expect("carried");
         let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
         eprintln!("carried vs cold: {err:.1e}");
-        assert!(err < 1e-2, "carried vs cold: {err:.1e}");
+        assert!(err < 1e-3, "carried vs cold: {err:.1e}");
         previous = warm;
     }
 }
