@@ -192,14 +192,7 @@ pub fn solve(
     }
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(next, shift, m.max(options.block_size), Par::Seq)?;
-    let old_vectors = concat_columns(
-        extra_rigid(previous_solution).as_ref(),
-        concat_columns(
-            previous_solution.vectors.as_ref(),
-            previous_solution.guard_vectors.as_ref(),
-        )
-        .as_ref(),
-    );
+    let old_vectors = previous_columns(previous_solution, usize::MAX);
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
     let fields = extra_rigid(previous_solution).ncols() == 0;
     let start = start_block(next, &carried, m, fields);
@@ -263,15 +256,7 @@ pub fn ritz(
 ) -> Result<EigenSolution, EigenError> {
     let t0 = Instant::now();
     let ops = Operators::new(next);
-    let guards = previous_solution.guard_vectors.ncols().min(RITZ_GUARDS);
-    let old_vectors = concat_columns(
-        extra_rigid(previous_solution).as_ref(),
-        concat_columns(
-            previous_solution.vectors.as_ref(),
-            previous_solution.guard_vectors.get(.., ..guards),
-        )
-        .as_ref(),
-    );
+    let old_vectors = previous_columns(previous_solution, RITZ_GUARDS);
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
     let n = ops.dofs();
     let w = 6 + carried.columns;
@@ -491,6 +476,17 @@ fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
     } else {
         r.get(.., 0..0)
     }
+}
+
+/// The columns a warm start carries: the extra rigid modes (if any, [`extra_rigid`]), the
+/// modes, and at most `guards` guard vectors.
+fn previous_columns(previous: &EigenSolution, guards: usize) -> Mat<f64> {
+    let guards = previous.guard_vectors.ncols().min(guards);
+    let modes = concat_columns(
+        previous.vectors.as_ref(),
+        previous.guard_vectors.get(.., ..guards),
+    );
+    concat_columns(extra_rigid(previous), modes.as_ref())
 }
 
 /// `[a | b]`.
