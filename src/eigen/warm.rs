@@ -69,18 +69,24 @@ pub struct Transferred {
 /// (`next` voxel `v` is `previous` voxel `v + d`), and that overlap's size. Offset zero wins
 /// ties.
 pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
-    let dims = |m: &FemModel| {
-        let p = m.kind.order();
-        [0, 1, 2].map(|a| (m.lattice[a] - 1) / p)
-    };
-    let pd = dims(previous);
+    let p = previous.kind.order();
+    let dims = [0, 1, 2].map(|a| (previous.lattice[a] - 1) / p);
+    align_voxels(&previous.voxels, dims, &next.voxels)
+}
+
+/// [`align`] on voxel lists: `previous` lies in a grid of `previous_dims`.
+pub fn align_voxels(
+    previous: &[[usize; 3]],
+    previous_dims: [usize; 3],
+    next: &[[usize; 3]],
+) -> ([i64; 3], usize) {
+    let pd = previous_dims;
     let mut occupied = vec![false; pd.iter().product()];
-    for v in &previous.voxels {
+    for v in previous {
         occupied[v[0] + pd[0] * (v[1] + pd[1] * v[2])] = true;
     }
     let overlap = |d: [i64; 3]| {
-        next.voxels
-            .iter()
+        next.iter()
             .filter(|v| {
                 let q = [0, 1, 2].map(|a| v[a] as i64 + d[a]);
                 (0..3).all(|a| q[a] >= 0 && q[a] < pd[a] as i64)
@@ -89,7 +95,7 @@ pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
             .count()
     };
     let mut best = ([0; 3], overlap([0; 3]));
-    if best.1 == next.voxels.len().min(previous.voxels.len()) {
+    if best.1 == next.len().min(previous.len()) {
         return best;
     }
     for dz in -MAX_OFFSET..=MAX_OFFSET {

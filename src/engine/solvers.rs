@@ -9,11 +9,12 @@
 //! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
 //!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]);
-//! 3. [`IncrementalFemSolver`], the exact answer (a cold solve: warm-started LOBPCG,
-//!    [`ModeBasis::solve_warm`], measured slower, see [`IncrementalFemSolver::solve`]); it
-//!    keeps the answer for the next stroke's carried answer.
+//! 3. [`IncrementalFemSolver`], the exact answer (a cold solve: the warm-started exact solve,
+//!    [`ModeBasis::solve_warm`], measured slower; ARCHITECTURE.md); it keeps the answer for
+//!    the next stroke's carried answer.
 //!
-//! The two share the last exact basis (the coarse answer never becomes a warm start).
+//! All three share the last exact basis (a coarse or carried answer never becomes the start of
+//! another).
 
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::eigen::ModeCount;
@@ -111,14 +112,17 @@ pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
     (coarse.count() > 0 && ops::components(&coarse).1 == ops::components(grid).1).then_some(coarse)
 }
 
-/// Whether `request` is a small edit of `previous` that [`ModeBasis::solve_warm`] refines.
+/// Whether `request` is an edit of `previous` that the carried answer serves: the same element
+/// and Poisson's ratio, and (after alignment) at least [`WARM_MIN_OVERLAP`] of the voxels in
+/// common, the criterion [`ModeBasis::carried_ritz`] applies.
 fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
     let old = &previous.model;
     if old.kind != request.element || old.poisson_ratio != request.poisson_ratio {
         return false;
     }
-    let (count, before) = (request.grid.count() as f64, old.voxels.len() as f64);
-    (count - before).abs() <= (1.0 - WARM_MIN_OVERLAP) * count.max(before)
+    let next = request.grid.solid_voxels();
+    let (_, overlap) = crate::eigen::warm::align_voxels(&old.voxels, previous.grid_dims(), &next);
+    overlap as f64 >= WARM_MIN_OVERLAP * next.len().max(old.voxels.len()) as f64
 }
 
 /// The exact FEM answer; it keeps the last one for the chain's faster answers to start from.
