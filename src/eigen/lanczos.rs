@@ -10,9 +10,9 @@
 //! Blocks (default 8 vectors) find repeated eigenvalues, which symmetric objects have, and let
 //! the triangular solves work on several right-hand sides at once. The basis is kept fully
 //! M-orthogonal (classical Gram-Schmidt against the basis, twice; within the new block, Cholesky
-//! QR twice in the M-inner product, [`chol_qr`]); when it is full, the wanted Ritz vectors and
+//! QR twice in the M-inner product, `chol_qr`); when it is full, the wanted Ritz vectors and
 //! the residual block restart it (thick restart: Wu and Simon 2000; Stathopoulos and Saad 1998).
-//! Convergence is checked after every block from the Lanczos relation ([`RitzCheck`]), so the
+//! Convergence is checked after every block from the Lanczos relation (`RitzCheck`), so the
 //! solve stops as soon as the wanted pairs meet the tolerance.
 
 use super::factor::ShiftedCholesky;

@@ -21,7 +21,7 @@
 //!    random guards instead the highest wanted modes took 7-8 iterations) and a few random
 //!    columns (they let a mode the old shape did not have, say a loose voxel's flapping,
 //!    grow in).
-//! 3. LOBPCG ([`super::lobpcg::iterate`]) refines the block with the exact shift-invert
+//! 3. LOBPCG (`lobpcg::iterate`) refines the block with the exact shift-invert
 //!    preconditioner, a sparse Cholesky factor of the new `K - sigma M`: 2-5 iterations on
 //!    one-voxel strokes of the presets (8 on the steel bar).
 //! 4. A start that does not converge within [`WARM_ITERATIONS`], or that finds a different

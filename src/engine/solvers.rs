@@ -65,7 +65,7 @@ const COARSE_MIN_AGREEMENT: f64 = 0.7;
 /// `None` where halving would change the object too much to be a useful first answer: a
 /// coarse voxel is solid when at least `t` of its (up to 8) fine voxels are, with `t` chosen
 /// to agree best with the fine grid; the result must keep the object's face-connected
-/// component count and agree on [`COARSE_MIN_AGREEMENT`] of the voxels (intersection over
+/// component count and agree on `COARSE_MIN_AGREEMENT` (0.7) of the voxels (intersection over
 /// union). Walls one voxel thick do not survive halving (those objects wait for the exact
 /// answer, or the neural predictor).
 pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
