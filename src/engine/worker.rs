@@ -5,9 +5,9 @@
 //! [`EngineControl::request`]) and [`super::audio::AudioEngine`] (which pops solved objects
 //! from an `rtrb` ring and pushes the replaced ones back through a second ring, freed here).
 //! Requests that arrive during a solve coalesce: only the newest waiting one is solved next.
-//! Solvers form a chain ([`ModeSolver`]): a fast approximate one (a coarse grid,
-//! [`super::solvers`]; the neural predictor, later) answers first and the exact FEM solve
-//! replaces it, unless a newer request has arrived.
+//! Solvers form a chain ([`ModeSolver`]): fast approximate ones (a coarse grid, the carried
+//! modes of the last exact answer: [`super::solvers`]; the neural predictor, later) answer
+//! first and the exact FEM solve replaces them, unless a newer request has arrived.
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
@@ -101,7 +101,8 @@ pub struct SolveReport {
     pub error: Option<String>,
     /// The answer's typical relative frequency error ([`ModeSolver::expected_error`]).
     pub expected_error: Option<f64>,
-    /// Whether the exact answer was refined from the previous edit's modes.
+    /// Whether the answer started from the previous edit's modes (a carried or warm-started
+    /// answer) rather than from scratch.
     pub warm_start: bool,
 }
 
