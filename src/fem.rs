@@ -128,15 +128,22 @@ impl FemModel {
         3 * self.nodes()
     }
 
+    /// Lattice coordinates of a node (`order()` lattice steps per voxel).
+    pub fn node_lattice_coords(&self, node: usize) -> [i64; 3] {
+        let l = self.node_lattice[node];
+        let [lx, ly, _] = self.lattice;
+        [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64)
+    }
+
     /// Position of a node in voxel units.
     pub fn node_position(&self, node: usize) -> [f64; 3] {
-        let l = self.node_lattice[node];
         let p = self.kind.order() as f64;
-        let [lx, ly, _] = self.lattice;
-        [
-            (l % lx) as f64 / p,
-            ((l / lx) % ly) as f64 / p,
-            (l / (lx * ly)) as f64 / p,
-        ]
+        self.node_lattice_coords(node).map(|c| c as f64 / p)
+    }
+
+    /// Voxels along x, y, z of the grid the model was assembled from.
+    pub fn grid_dims(&self) -> [usize; 3] {
+        let p = self.kind.order();
+        self.lattice.map(|l| (l - 1) / p)
     }
 }

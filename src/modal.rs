@@ -318,8 +318,7 @@ impl ModeBasis {
 
     /// The grid's extent in voxels.
     pub fn grid_dims(&self) -> [usize; 3] {
-        let p = self.model.kind.order();
-        self.model.lattice.map(|l| (l - 1) / p)
+        self.model.grid_dims()
     }
 
     /// Applies a material, a voxel size and a strike: every computed mode, damped, with gains.

@@ -340,27 +340,30 @@ impl RitzCheck<'_> {
         if !select(ops, &estimated, self.options.count).complete {
             return Ok(Check::Converged(estimated.len(), worst));
         }
-        self.verify(basis, &theta, &y, &order[..estimated.len()])
+        self.verify(basis, &theta, &y, &order, estimated.len())
     }
 
-    /// Forms the Ritz vectors of `order` (descending theta) and checks them explicitly.
+    /// Forms the Ritz vectors of the first `check` pairs of `order` (every positive theta,
+    /// descending) and checks them explicitly; the next ones up to [`super::warm_guard`] are
+    /// formed too, unchecked, as guard vectors for a later warm start.
     fn verify(
         &self,
         basis: &Basis,
         theta: &[f64],
         y: &Mat<f64>,
         order: &[usize],
+        check: usize,
     ) -> Result<Check, EigenError> {
         let len = basis.len;
-        // The checked pairs, then guard vectors for a later warm start (unchecked).
-        let check = order.len();
-        let all: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
-        let width = (check + super::warm_guard(self.nev)).min(all.len());
-        let ysel = Mat::from_fn(len, width, |i, j| y[(i, all[j])]);
+        let width = (check + super::warm_guard(self.nev)).min(order.len());
+        let ysel = Mat::from_fn(len, width, |i, j| y[(i, order[j])]);
         let x = tall_times_small(basis.v.get(.., 0..len), ysel.as_ref());
-        let lambdas: Vec<f64> = order.iter().map(|&o| self.shift + 1.0 / theta[o]).collect();
+        let lambdas: Vec<f64> = order[..check]
+            .iter()
+            .map(|&o| self.shift + 1.0 / theta[o])
+            .collect();
         let res = self.ops.block_residuals(&lambdas, x.get(.., 0..check));
-        let mut pairs = Vec::with_capacity(order.len());
+        let mut pairs = Vec::with_capacity(check);
         let mut worst = 0.0;
         for (j, (&lambda, &r)) in lambdas.iter().zip(&res).enumerate() {
             if !r.is_finite() {
@@ -468,7 +471,7 @@ pub fn run(
         let order: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
         // The estimates can be pessimistic: a full basis is always checked explicitly.
         let check = nev.min(order.len());
-        let rigid = match checker.verify(&basis, &theta, &y, &order[..check])? {
+        let rigid = match checker.verify(&basis, &theta, &y, &order, check)? {
             Check::Done(solution) => return Ok(*solution),
             Check::Converged(c, w) => {
                 (converged_count, worst) = (c, w);

@@ -134,16 +134,9 @@ impl Multigrid {
             }
             _ => coarsen(&voxel_mesh(unit.stiffness.clone(), unit.mass.clone())),
         };
-        let mut fine_coords = Vec::with_capacity(model.nodes());
-        for n in 0..model.nodes() {
-            let l = model.node_lattice[n];
-            let [lx, ly, _] = model.lattice;
-            fine_coords.push([
-                (l % lx) as i64,
-                ((l / lx) % ly) as i64,
-                (l / (lx * ly)) as i64,
-            ]);
-        }
+        let fine_coords: Vec<[i64; 3]> = (0..model.nodes())
+            .map(|n| model.node_lattice_coords(n))
+            .collect();
         // Level matrices are K and M until tau is known (from the coarsest level).
         let mut fine_a = zeroed(model.k.len());
         fine_a.copy_from_slice(&model.k);

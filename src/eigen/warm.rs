@@ -69,9 +69,7 @@ pub struct Transferred {
 /// (`next` voxel `v` is `previous` voxel `v + d`), and that overlap's size. Offset zero wins
 /// ties.
 pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
-    let p = previous.kind.order();
-    let dims = [0, 1, 2].map(|a| (previous.lattice[a] - 1) / p);
-    align_voxels(&previous.voxels, dims, &next.voxels)
+    align_voxels(&previous.voxels, previous.grid_dims(), &next.voxels)
 }
 
 /// [`align`] on voxel lists: `previous` lies in a grid of `previous_dims`.
@@ -131,10 +129,9 @@ pub fn transfer(
         let node = previous.lattice_node[(q[0] + plx * (q[1] + ply * q[2])) as usize];
         (node != u32::MAX).then_some(node as usize)
     };
-    let [lx, ly, _] = next.lattice;
     let (mut kept, mut fresh) = (0, 0);
-    for (node, &l) in next.node_lattice.iter().enumerate() {
-        let here = [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64);
+    for node in 0..next.nodes() {
+        let here = next.node_lattice_coords(node);
         let q = [0, 1, 2].map(|a| here[a] + p * offset[a]);
         let row = &mut block[3 * node * w..3 * (node + 1) * w];
         if let Some(o) = old_node(q) {
@@ -265,13 +262,6 @@ pub fn ritz(
     let old_vectors = previous_columns(previous_solution, RITZ_GUARDS);
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
     let n = ops.dofs();
-    let w = 6 + carried.columns;
-    if w > n {
-        return Err(EigenError::TooFewDofs {
-            dofs: n,
-            wanted: count,
-        });
-    }
     // The exact rigid fields, unless the previous rigid modes (more than six) are carried.
     let fields = if extra_rigid(previous_solution).ncols() > 0 {
         0
@@ -279,6 +269,12 @@ pub fn ritz(
         6
     };
     let w = fields + carried.columns;
+    if w > n {
+        return Err(EigenError::TooFewDofs {
+            dofs: n,
+            wanted: count,
+        });
+    }
     let rigid = rigid_fields(next);
     let x = Mat::from_fn(n, w, |i, j| {
         if j < fields {
@@ -376,20 +372,15 @@ fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<
         return None;
     }
     let p = next.kind.order() as i64;
-    let [lx, ly, _] = next.lattice;
-    let nodes: Vec<usize> = next
-        .node_lattice
-        .iter()
-        .enumerate()
-        .filter(|(_, &l)| {
-            let q = [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64);
+    let nodes: Vec<usize> = (0..next.nodes())
+        .filter(|&node| {
+            let q = next.node_lattice_coords(node);
             edited.iter().any(|v| {
                 (0..3).all(|a| {
                     q[a] >= p * (v[a] - PATCH_RADIUS) && q[a] <= p * (v[a] + 1 + PATCH_RADIUS)
                 })
             })
         })
-        .map(|(i, _)| i)
         .collect();
     (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
 }

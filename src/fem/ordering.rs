@@ -14,17 +14,8 @@ const LEAF_NODES: usize = 48;
 /// A node permutation: `order[k]` is the node eliminated `k`-th.
 pub fn nested_dissection(model: &FemModel) -> Vec<usize> {
     let p = model.kind.order() as i64;
-    let [lx, ly, _] = model.lattice;
-    let coords: Vec<[i64; 3]> = model
-        .node_lattice
-        .iter()
-        .map(|&l| {
-            [
-                (l % lx) as i64,
-                ((l / lx) % ly) as i64,
-                (l / (lx * ly)) as i64,
-            ]
-        })
+    let coords: Vec<[i64; 3]> = (0..model.nodes())
+        .map(|n| model.node_lattice_coords(n))
         .collect();
     nested_dissection_of(&coords, p)
 }
