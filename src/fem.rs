@@ -2,13 +2,14 @@
 //!
 //! Where it sits: between the shape ([`crate::shape`]) and the eigensolvers ([`crate::eigen`]).
 //! [`FemModel::assemble`] numbers the nodes of the occupied voxels, and sums the single unit-cube
-//! element matrix ([`element`]) over all voxels into node-blocked sparse `K` and `M`
-//! ([`sparse`]). The model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge
+//! element matrix ([`element`]) over all full voxels, and a cut element ([`cut`], the finite
+//! cell method) over the partial ones, into node-blocked sparse `K` and `M` ([`sparse`]). The model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge
 //! `h = 1`): physical matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical
 //! object are `E / (rho h^2)` times the reference ones and its mass-normalised modes are
 //! `(rho h^3)^(-1/2)` times the reference ones (the exact form of Deep-Modal's scaling laws,
 //! seed 000 eq. 10-12; [`crate::modal`] applies them).
 
+pub mod cut;
 pub mod element;
 pub mod ordering;
 pub mod sparse;
@@ -93,8 +94,25 @@ impl FemModel {
         let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
         let mut k = crate::buffer::zeroed(pattern.col.len());
         let mut m = crate::buffer::zeroed(pattern.col.len());
-        let unit_matrices = (&unit.stiffness[..], &unit.mass[..]);
-        sparse::add_elements(&pattern, &elements, nloc, |_| unit_matrices, &mut k, &mut m);
+        let ndof = 3 * nloc;
+        // Partial voxels: cut elements.
+        let cut = (!grid.is_binary()).then(|| {
+            cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind))
+        });
+        let (mut ke_cut, mut me_cut) = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
+        let mut scratch = cut::CutScratch::default();
+        let mut slots = vec![0usize; nloc * nloc];
+        for (v, nodes) in voxels.iter().zip(elements.chunks_exact(nloc)) {
+            let (ke, me) = match (grid.subcell_fill(grid.index(v[0], v[1], v[2])), &cut) {
+                (Some(fill), Some(cut)) => {
+                    let fractions = fill.coarsened(cut.per_axis());
+                    cut.matrices(&fractions, &mut ke_cut, &mut me_cut, &mut scratch);
+                    (&ke_cut[..], &me_cut[..])
+                }
+                _ => (&unit.stiffness[..], &unit.mass[..]),
+            };
+            sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut slots);
+        }
         Ok(FemModel {
             kind,
             poisson_ratio,

@@ -5,15 +5,21 @@
 //! from a closed OBJ/STL mesh ([`mesh`]); boolean operations, hollowing and face-connected
 //! components live in [`ops`]. [`crate::fem`] turns each occupied voxel into one hexahedral
 //! element, so every element is the same cube of edge [`VoxelGrid::voxel_size_m`] (the hexahedral
-//! voxel FEM of NeuralSound, seed 001 sec. 3.1, and Deep-Modal, seed 000 sec. 4.1).
+//! voxel FEM of NeuralSound, seed 001 sec. 3.1, and Deep-Modal, seed 000 sec. 4.1). Voxels cut
+//! by a smooth surface keep how full they are ([`fill`]), and their elements integrate over
+//! the filled part only.
 
+pub mod fill;
 pub mod mesh;
 pub mod ops;
 pub mod primitives;
 pub mod spec;
 pub mod vox;
 
+use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
+
+pub use fill::{SubFill, VoxelFill};
 
 /// Largest number of voxels along any axis a grid may have. A 256^3 solid is ~50 million degrees
 /// of freedom, far past what a modal solve on one machine can factor.
@@ -22,15 +28,18 @@ pub const MAX_GRID_DIM: usize = 256;
 /// Largest number of occupied voxels the FEM accepts (a 64^3 solid is 262,144).
 pub const MAX_OCCUPIED_VOXELS: usize = 300_000;
 
-/// A box of cubic voxels, each either solid or empty.
+/// A box of cubic voxels, each empty, solid, or partly filled (a [`SubFill`]).
 ///
 /// Voxel `(x, y, z)` occupies `[x, x+1] x [y, y+1] x [z, z+1]` times `voxel_size_m`. Storage is
-/// x-fastest: index `x + nx (y + ny z)`.
+/// x-fastest: index `x + nx (y + ny z)`. A partial voxel is occupied (it is an element) and
+/// its fill is kept beside the occupancy, so a binary grid pays nothing for fractions.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VoxelGrid {
     dims: [usize; 3],
     voxel_size_m: f64,
     occupied: Vec<bool>,
+    /// Fill of the partial voxels, by linear index; every key is occupied.
+    partial: BTreeMap<usize, SubFill>,
 }
 
 /// What is wrong with a voxel grid.
@@ -105,7 +114,26 @@ impl VoxelGrid {
             dims,
             voxel_size_m,
             occupied,
+            partial: BTreeMap::new(),
         })
+    }
+
+    /// A grid of `dims` rasterised from a signed distance in voxel units (negative inside, see
+    /// [`fill::voxel_fill`]): voxels the surface cuts keep their sub-cell fill.
+    pub fn from_sdf(
+        dims: [usize; 3],
+        voxel_size_m: f64,
+        sdf: impl Fn(f64, f64, f64) -> f64,
+    ) -> Result<Self, ShapeError> {
+        let mut grid = Self::new(dims, voxel_size_m)?;
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    grid.set_fill(x, y, z, fill::voxel_fill(&sdf, [x, y, z]));
+                }
+            }
+        }
+        Ok(grid)
     }
 
     /// A grid of `dims` filled where `inside(x, y, z)` holds for the voxel's centre, given in
@@ -162,13 +190,81 @@ impl VoxelGrid {
         self.occupied[self.index(x as usize, y as usize, z as usize)]
     }
 
-    /// Sets voxel `(x, y, z)`.
+    /// Sets voxel `(x, y, z)` solid (full) or empty.
     pub fn set(&mut self, x: usize, y: usize, z: usize, solid: bool) {
         let i = self.index(x, y, z);
         self.occupied[i] = solid;
+        self.partial.remove(&i);
     }
 
-    /// The x-fastest occupancy.
+    /// Sets voxel `(x, y, z)` empty, full or partly filled.
+    pub fn set_fill(&mut self, x: usize, y: usize, z: usize, fill: VoxelFill) {
+        match fill {
+            VoxelFill::Empty => self.set(x, y, z, false),
+            VoxelFill::Full => self.set(x, y, z, true),
+            VoxelFill::Partial(f) if f.is_full() => self.set(x, y, z, true),
+            VoxelFill::Partial(f) if f.0.iter().all(|&v| v == 0) => self.set(x, y, z, false),
+            VoxelFill::Partial(f) => {
+                let i = self.index(x, y, z);
+                self.occupied[i] = true;
+                self.partial.insert(i, f);
+            }
+        }
+    }
+
+    /// What voxel `(x, y, z)` holds; out-of-range coordinates are empty.
+    pub fn fill_at(&self, x: isize, y: isize, z: isize) -> VoxelFill {
+        if !self.get(x, y, z) {
+            return VoxelFill::Empty;
+        }
+        match self.partial.get(&self.index(x as usize, y as usize, z as usize)) {
+            Some(f) => VoxelFill::Partial(*f),
+            None => VoxelFill::Full,
+        }
+    }
+
+    /// Filled volume fraction of voxel `(x, y, z)` in `[0, 1]`; out-of-range coordinates are 0.
+    pub fn fraction(&self, x: isize, y: isize, z: isize) -> f64 {
+        match self.fill_at(x, y, z) {
+            VoxelFill::Empty => 0.0,
+            VoxelFill::Full => 1.0,
+            VoxelFill::Partial(f) => f.mean(),
+        }
+    }
+
+    /// The sub-cell fill of the voxel at linear index `i`, if it is partial.
+    pub fn subcell_fill(&self, i: usize) -> Option<&SubFill> {
+        self.partial.get(&i)
+    }
+
+    /// The partial voxels by linear index (empty for a binary grid).
+    pub fn partial_voxels(&self) -> impl Iterator<Item = (usize, &SubFill)> {
+        self.partial.iter().map(|(&i, f)| (i, f))
+    }
+
+    /// Whether every occupied voxel is full.
+    pub fn is_binary(&self) -> bool {
+        self.partial.is_empty()
+    }
+
+    /// The same grid with every partial voxel made full if at least `threshold` of it is
+    /// filled and empty otherwise (a `.vox` export uses 1/2).
+    pub fn thresholded(&self, threshold: f64) -> VoxelGrid {
+        let mut out = self.clone();
+        for (&i, f) in &self.partial {
+            out.occupied[i] = f.mean() >= threshold;
+        }
+        out.partial.clear();
+        out
+    }
+
+    /// The filled volume in voxels (partial voxels count their fraction).
+    pub fn volume_voxels(&self) -> f64 {
+        let partial: f64 = self.partial.values().map(|f| 1.0 - f.mean()).sum();
+        self.count() as f64 - partial
+    }
+
+    /// The x-fastest occupancy (partial voxels are occupied).
     pub fn occupancy(&self) -> &[bool] {
         &self.occupied
     }
@@ -206,9 +302,26 @@ impl VoxelGrid {
             return Err(ShapeError::TooLarge { dims });
         }
         let f = factor as f64;
-        VoxelGrid::from_fn(dims, self.voxel_size_m / f, |x, y, z| {
+        let mut out = VoxelGrid::from_fn(dims, self.voxel_size_m / f, |x, y, z| {
             self.get((x / f) as isize, (y / f) as isize, (z / f) as isize)
-        })
+        })?;
+        // A fine voxel inside a partial one takes the fill of the sub-cell holding its centre.
+        let n = fill::SUBCELLS_PER_AXIS;
+        for (&i, sub) in &self.partial {
+            let c = [i % self.dims[0], (i / self.dims[0]) % self.dims[1], i / (self.dims[0] * self.dims[1])];
+            for fz in 0..factor {
+                for fy in 0..factor {
+                    for fx in 0..factor {
+                        let o = [fx, fy, fz];
+                        let s = o.map(|o| ((o as f64 + 0.5) / f * n as f64) as usize);
+                        let frac = sub.fractions()[s[0] + n * (s[1] + n * s[2])];
+                        let p = [0, 1, 2].map(|a| c[a] * factor + o[a]);
+                        out.set_fill(p[0], p[1], p[2], fill::uniform(frac));
+                    }
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The grid cropped to the bounding box of its solid voxels (unchanged if empty).
@@ -230,9 +343,11 @@ impl VoxelGrid {
             dims,
             voxel_size_m: self.voxel_size_m,
             occupied: vec![false; dims.iter().product()],
+            partial: BTreeMap::new(),
         };
         for v in solid {
-            out.set(v[0] - lo[0], v[1] - lo[1], v[2] - lo[2], true);
+            let f = self.fill_at(v[0] as isize, v[1] as isize, v[2] as isize);
+            out.set_fill(v[0] - lo[0], v[1] - lo[1], v[2] - lo[2], f);
         }
         out
     }
@@ -250,6 +365,7 @@ impl VoxelGrid {
                 .fold(0u64, |w, (i, &o)| w | ((o as u64) << i));
             word.hash(&mut h);
         }
+        self.partial.hash(&mut h);
         h.finish()
     }
 

@@ -53,6 +53,10 @@ pub struct ObjectArgs {
     /// mesh (a convergence check; costs about N^3 more).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub split: usize,
+    /// Rasterise built-in shapes as a binary staircase (a voxel solid when its centre is
+    /// inside) instead of keeping how full the voxels the surface cuts are.
+    #[arg(long)]
+    pub staircase: bool,
     /// Finite element: hex8i (default: trilinear with incompatible modes, no locking), hex27
     /// (quadratic, most accurate) or hex8 (plain trilinear, the papers' reference; stiff).
     #[arg(long, value_name = "NAME", default_value = "hex8i")]
@@ -230,7 +234,12 @@ impl Object {
                     Some(r) => r as f64 / longest,
                     None => 1.0,
                 };
-                let mut grid = shape.rasterize(scale, 1.0).map_err(ModalError::from)?;
+                let mut grid = if args.staircase {
+                    shape.rasterize_staircase(scale, 1.0)
+                } else {
+                    shape.rasterize(scale, 1.0)
+                }
+                .map_err(ModalError::from)?;
                 if let Some(w) = hollow {
                     grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
                 }

@@ -113,31 +113,33 @@ pub fn elasticity(nu: f64) -> [[f64; 6]; 6] {
     d
 }
 
+/// The strain (Voigt, engineering shear) of a unit displacement of component `c` times a field
+/// whose gradient is `g`: one column of the strain-displacement matrix `B`.
+pub(crate) fn strain_column(g: [f64; 3], c: usize) -> [f64; 6] {
+    let mut b = [0.0; 6];
+    b[c] = g[c];
+    // Shear: xy (3) = du/dy + dv/dx, yz (4) = dv/dz + dw/dy, zx (5) = dw/dx + du/dz.
+    match c {
+        0 => {
+            b[3] = g[1];
+            b[5] = g[2];
+        }
+        1 => {
+            b[3] = g[0];
+            b[4] = g[2];
+        }
+        _ => {
+            b[4] = g[1];
+            b[5] = g[0];
+        }
+    }
+    b
+}
+
 /// Adds `w B^T D B` for a set of shape-function gradients `grad[a] = dN_a/dx` (physical) into a
 /// dense `ndof x ndof` matrix.
 fn add_btdb(k: &mut [f64], ndof: usize, grad: &[[f64; 3]], d: &[[f64; 6]; 6], w: f64) {
-    // B column for DOF (a, c): strain vector.
-    let bcol = |a: usize, c: usize| -> [f64; 6] {
-        let g = grad[a];
-        let mut b = [0.0; 6];
-        b[c] = g[c];
-        // Shear: xy (3) = du/dy + dv/dx, yz (4) = dv/dz + dw/dy, zx (5) = dw/dx + du/dz.
-        match c {
-            0 => {
-                b[3] = g[1];
-                b[5] = g[2];
-            }
-            1 => {
-                b[3] = g[0];
-                b[4] = g[2];
-            }
-            _ => {
-                b[4] = g[1];
-                b[5] = g[0];
-            }
-        }
-        b
-    };
+    let bcol = |a: usize, c: usize| strain_column(grad[a], c);
     let n = grad.len();
     let cols: Vec<[f64; 6]> = (0..3 * n).map(|i| bcol(i / 3, i % 3)).collect();
     let db: Vec<[f64; 6]> = cols
@@ -193,101 +195,153 @@ fn spd_solve(a: &mut [f64], n: usize, b: &mut [f64], m: usize) {
     }
 }
 
+/// The uncondensed matrices of `kind` integrated over the box `lo..hi` of the reference cube
+/// `[-1, 1]^3` (in `xi` coordinates), for `E = 1`, `rho = 1` and a unit-cube element: the
+/// stiffness over the nodal DOFs plus, for [`ElementKind::Hex8Incompatible`], its 9 bubble DOFs
+/// (`3 (n + 3)` square), and the consistent mass over the nodal DOFs (`3 n` square). The Gauss
+/// rule of [`UnitElement`] is exact on any box, so the whole cube gives exactly the unit
+/// element's integrals and sub-boxes sum to them (the finite cell method's sub-cells,
+/// [`super::cut`]).
+pub(crate) fn integrate_box(
+    kind: ElementKind,
+    nu: f64,
+    lo: [f64; 3],
+    hi: [f64; 3],
+) -> BoxIntegrals {
+    let p = kind.order();
+    let n1 = p + 1;
+    let nn = kind.nodes();
+    let ndof = 3 * nn;
+    let (pts, wts) = gauss(p + 1);
+    let d = elasticity(nu);
+    // Unit cube: x = (xi + 1) / 2, so d/dx = 2 d/dxi and dV = dxi^3 / 8.
+    let det_j = 0.125;
+    let mut m = vec![0.0; ndof * ndof];
+    // Incompatible modes: 3 bubbles x 3 components, coupled to the nodal DOFs.
+    let incompatible = kind == ElementKind::Hex8Incompatible;
+    let nall = if incompatible { nn + 3 } else { nn };
+    let mut kfull = vec![0.0; 9 * nall * nall];
+    let mut strain = vec![[0.0; 6]; 3 * nall];
+    // The Gauss points mapped into the box; for the whole cube the map is the identity, bit
+    // for bit (centre 0, half-width 1).
+    let map = |axis: usize, t: f64| 0.5 * (lo[axis] + hi[axis]) + 0.5 * (hi[axis] - lo[axis]) * t;
+    let half: f64 = (0..3).map(|a| 0.5 * (hi[a] - lo[a])).product();
+    for (iz, &tz) in pts.iter().enumerate() {
+        for (iy, &ty) in pts.iter().enumerate() {
+            for (ix, &tx) in pts.iter().enumerate() {
+                let (x, y, z) = (map(0, tx), map(1, ty), map(2, tz));
+                let w = wts[ix] * wts[iy] * wts[iz] * det_j * half;
+                let (nx, dx) = basis_1d(p, x);
+                let (ny, dy) = basis_1d(p, y);
+                let (nz, dz) = basis_1d(p, z);
+                let mut val = vec![0.0; nn];
+                let mut grad = vec![[0.0; 3]; nall];
+                for az in 0..n1 {
+                    for ay in 0..n1 {
+                        for ax in 0..n1 {
+                            let a = ax + n1 * (ay + n1 * az);
+                            val[a] = nx[ax] * ny[ay] * nz[az];
+                            grad[a] = [
+                                2.0 * dx[ax] * ny[ay] * nz[az],
+                                2.0 * nx[ax] * dy[ay] * nz[az],
+                                2.0 * nx[ax] * ny[ay] * dz[az],
+                            ];
+                        }
+                    }
+                }
+                if incompatible {
+                    // Bubbles 1 - xi^2, 1 - eta^2, 1 - zeta^2; gradients in x.
+                    grad[nn] = [2.0 * -2.0 * x, 0.0, 0.0];
+                    grad[nn + 1] = [0.0, 2.0 * -2.0 * y, 0.0];
+                    grad[nn + 2] = [0.0, 0.0, 2.0 * -2.0 * z];
+                }
+                add_btdb(&mut kfull, 3 * nall, &grad, &d, w);
+                for (i, col) in strain.iter_mut().enumerate() {
+                    let b = strain_column(grad[i / 3], i % 3);
+                    col.iter_mut().zip(b).for_each(|(s, b)| *s += w * b);
+                }
+                for a in 0..nn {
+                    for b in 0..nn {
+                        let v = w * val[a] * val[b];
+                        for c in 0..3 {
+                            m[(3 * a + c) * ndof + 3 * b + c] += v;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    BoxIntegrals {
+        kfull,
+        mass: m,
+        strain,
+    }
+}
+
+/// What [`integrate_box`] integrates over a box of the unit cube.
+#[derive(Clone, Debug)]
+pub(crate) struct BoxIntegrals {
+    /// Uncondensed stiffness, `(3 (n + bubbles))^2`, row-major.
+    pub kfull: Vec<f64>,
+    /// Consistent mass over the nodal DOFs, `(3 n)^2`, row-major.
+    pub mass: Vec<f64>,
+    /// `int B dV`: the integrated strain of each DOF (nodal, then bubble), Voigt.
+    pub strain: Vec<[f64; 6]>,
+}
+
+/// The nodal stiffness of `kind` from its uncondensed integral `kfull` ([`integrate_box`]):
+/// the incompatible modes condensed out statically (`K = Kuu - Kua Kaa^-1 Kau`), then
+/// symmetrised. Writes `3 n` square into `k`; `scratch` is reused between calls.
+pub(crate) fn condense(kind: ElementKind, kfull: &[f64], k: &mut [f64], scratch: &mut Vec<f64>) {
+    let ndof = 3 * kind.nodes();
+    if kind == ElementKind::Hex8Incompatible {
+        let (nu_, na) = (ndof, 9);
+        let full = nu_ + na;
+        scratch.clear();
+        scratch.resize(na * na + 2 * na * nu_, 0.0);
+        let (kaa, rest) = scratch.split_at_mut(na * na);
+        let (kau, x) = rest.split_at_mut(na * nu_);
+        for i in 0..na {
+            for j in 0..na {
+                kaa[i * na + j] = kfull[(nu_ + i) * full + nu_ + j];
+            }
+            for j in 0..nu_ {
+                kau[i * nu_ + j] = kfull[(nu_ + i) * full + j];
+            }
+        }
+        x.copy_from_slice(kau);
+        spd_solve(kaa, na, x, nu_);
+        for i in 0..nu_ {
+            for j in 0..nu_ {
+                let corr: f64 = (0..na).map(|s| kau[s * nu_ + i] * x[s * nu_ + j]).sum();
+                k[i * ndof + j] = kfull[i * full + j] - corr;
+            }
+        }
+    } else {
+        k.copy_from_slice(&kfull[..ndof * ndof]);
+    }
+    // Symmetrise away rounding.
+    for i in 0..ndof {
+        for j in 0..i {
+            let s = 0.5 * (k[i * ndof + j] + k[j * ndof + i]);
+            k[i * ndof + j] = s;
+            k[j * ndof + i] = s;
+        }
+    }
+}
+
 impl UnitElement {
     /// Computes the unit-cube matrices of `kind` for Poisson's ratio `nu`.
     pub fn new(kind: ElementKind, nu: f64) -> Self {
-        let p = kind.order();
-        let n1 = p + 1;
-        let nn = kind.nodes();
-        let ndof = 3 * nn;
-        let (pts, wts) = gauss(p + 1);
-        let d = elasticity(nu);
-        // Unit cube: x = (xi + 1) / 2, so d/dx = 2 d/dxi and dV = dxi^3 / 8.
-        let det_j = 0.125;
-        let mut k = vec![0.0; ndof * ndof];
-        let mut m = vec![0.0; ndof * ndof];
-        // Incompatible modes: 3 bubbles x 3 components, coupled to the nodal DOFs.
-        let incompatible = kind == ElementKind::Hex8Incompatible;
-        let nall = if incompatible { nn + 3 } else { nn };
-        let mut kfull = vec![0.0; 9 * nall * nall];
-        for (iz, &z) in pts.iter().enumerate() {
-            for (iy, &y) in pts.iter().enumerate() {
-                for (ix, &x) in pts.iter().enumerate() {
-                    let w = wts[ix] * wts[iy] * wts[iz] * det_j;
-                    let (nx, dx) = basis_1d(p, x);
-                    let (ny, dy) = basis_1d(p, y);
-                    let (nz, dz) = basis_1d(p, z);
-                    let mut val = vec![0.0; nn];
-                    let mut grad = vec![[0.0; 3]; nall];
-                    for az in 0..n1 {
-                        for ay in 0..n1 {
-                            for ax in 0..n1 {
-                                let a = ax + n1 * (ay + n1 * az);
-                                val[a] = nx[ax] * ny[ay] * nz[az];
-                                grad[a] = [
-                                    2.0 * dx[ax] * ny[ay] * nz[az],
-                                    2.0 * nx[ax] * dy[ay] * nz[az],
-                                    2.0 * nx[ax] * ny[ay] * dz[az],
-                                ];
-                            }
-                        }
-                    }
-                    if incompatible {
-                        // Bubbles 1 - xi^2, 1 - eta^2, 1 - zeta^2; gradients in x.
-                        grad[nn] = [2.0 * -2.0 * x, 0.0, 0.0];
-                        grad[nn + 1] = [0.0, 2.0 * -2.0 * y, 0.0];
-                        grad[nn + 2] = [0.0, 0.0, 2.0 * -2.0 * z];
-                    }
-                    add_btdb(&mut kfull, 3 * nall, &grad, &d, w);
-                    for a in 0..nn {
-                        for b in 0..nn {
-                            let v = w * val[a] * val[b];
-                            for c in 0..3 {
-                                m[(3 * a + c) * ndof + 3 * b + c] += v;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        if incompatible {
-            // Static condensation: K = Kuu - Kua Kaa^-1 Kau.
-            let (nu_, na) = (ndof, 9);
-            let full = 3 * nall;
-            let mut kaa = vec![0.0; na * na];
-            let mut kau = vec![0.0; na * nu_];
-            for i in 0..na {
-                for j in 0..na {
-                    kaa[i * na + j] = kfull[(nu_ + i) * full + nu_ + j];
-                }
-                for j in 0..nu_ {
-                    kau[i * nu_ + j] = kfull[(nu_ + i) * full + j];
-                }
-            }
-            let mut x = kau.clone();
-            spd_solve(&mut kaa, na, &mut x, nu_);
-            for i in 0..nu_ {
-                for j in 0..nu_ {
-                    let corr: f64 = (0..na).map(|s| kau[s * nu_ + i] * x[s * nu_ + j]).sum();
-                    k[i * ndof + j] = kfull[i * full + j] - corr;
-                }
-            }
-        } else {
-            k.copy_from_slice(&kfull);
-        }
-        // Symmetrise away rounding.
-        for i in 0..ndof {
-            for j in 0..i {
-                let s = 0.5 * (k[i * ndof + j] + k[j * ndof + i]);
-                k[i * ndof + j] = s;
-                k[j * ndof + i] = s;
-            }
-        }
+        let ndof = 3 * kind.nodes();
+        let BoxIntegrals { kfull, mass, .. } = integrate_box(kind, nu, [-1.0; 3], [1.0; 3]);
+        let mut stiffness = vec![0.0; ndof * ndof];
+        condense(kind, &kfull, &mut stiffness, &mut Vec::new());
         UnitElement {
             kind,
             poisson_ratio: nu,
-            stiffness: k,
-            mass: m,
+            stiffness,
+            mass,
         }
     }
 

@@ -70,26 +70,41 @@ pub fn add_elements<'a>(
     k: &mut [[f64; 9]],
     m: &mut [[f64; 9]],
 ) {
-    let ndof = 3 * nloc;
     let mut slots = vec![0usize; nloc * nloc];
     for (index, e) in elements.chunks_exact(nloc).enumerate() {
         let (ke, me) = matrices(index);
-        for (i, &a) in e.iter().enumerate() {
-            for (j, &b) in e.iter().enumerate() {
-                slots[i * nloc + j] = pattern
-                    .find(a as usize, b)
-                    .expect("pattern holds every element pair");
-            }
+        add_element(pattern, e, ke, me, k, m, &mut slots);
+    }
+}
+
+/// Adds one element's matrices `ke`, `me` (`3 nodes.len()` square, row-major, DOFs node-major)
+/// into `k` and `m`; `slots` is scratch of `nodes.len()^2` entries.
+pub fn add_element(
+    pattern: &BlockPattern,
+    nodes: &[u32],
+    ke: &[f64],
+    me: &[f64],
+    k: &mut [[f64; 9]],
+    m: &mut [[f64; 9]],
+    slots: &mut [usize],
+) {
+    let nloc = nodes.len();
+    let ndof = 3 * nloc;
+    for (i, &a) in nodes.iter().enumerate() {
+        for (j, &b) in nodes.iter().enumerate() {
+            slots[i * nloc + j] = pattern
+                .find(a as usize, b)
+                .expect("pattern holds every element pair");
         }
-        for i in 0..nloc {
-            for j in 0..nloc {
-                let s = slots[i * nloc + j];
-                for c in 0..3 {
-                    for d in 0..3 {
-                        let off = (3 * i + c) * ndof + 3 * j + d;
-                        k[s][3 * c + d] += ke[off];
-                        m[s][3 * c + d] += me[off];
-                    }
+    }
+    for i in 0..nloc {
+        for j in 0..nloc {
+            let s = slots[i * nloc + j];
+            for c in 0..3 {
+                for d in 0..3 {
+                    let off = (3 * i + c) * ndof + 3 * j + d;
+                    k[s][3 * c + d] += ke[off];
+                    m[s][3 * c + d] += me[off];
                 }
             }
         }

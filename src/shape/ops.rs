@@ -51,7 +51,10 @@ fn combine(
                     a.get(px as isize, py as isize, pz as isize),
                     b.occupancy()[b.index(x, y, z)],
                 );
-                out.set(px, py, pz, v);
+                // Voxels the operation leaves as they were keep their partial fill.
+                if v != a.get(px as isize, py as isize, pz as isize) {
+                    out.set(px, py, pz, v);
+                }
             }
         }
     }

@@ -2,7 +2,10 @@
 //!
 //! Every length is in voxels at resolution scale 1; [`Primitive::rasterize`] multiplies them all
 //! (walls included) by a scale, so the same object can be meshed finer or coarser with its
-//! proportions and physical wall thickness kept. A voxel is solid when its centre is inside.
+//! proportions and physical wall thickness kept. Each shape is a signed distance in voxel units:
+//! [`Primitive::rasterize`] keeps how full the voxels its surface cuts are (partial voxels,
+//! [`super::fill`]); [`Primitive::rasterize_staircase`] makes a voxel solid when its centre is
+//! inside (the binary staircase, kept to compare against).
 
 use super::{ShapeError, VoxelGrid};
 
@@ -141,54 +144,78 @@ impl Primitive {
         }
     }
 
-    /// Rasterises the shape with every length multiplied by `scale`.
+    /// Rasterises the shape with every length multiplied by `scale`; voxels the surface cuts
+    /// keep their sub-cell fill.
     pub fn rasterize(&self, scale: f64, voxel_size_m: f64) -> Result<VoxelGrid, ShapeError> {
+        let dims = self.grid_dims(scale)?;
+        let sdf = self.signed_distance(scale, dims);
+        VoxelGrid::from_sdf(dims, voxel_size_m, sdf)
+    }
+
+    /// Rasterises the shape with every length multiplied by `scale`, a voxel solid when its
+    /// centre is inside: the binary staircase.
+    pub fn rasterize_staircase(
+        &self,
+        scale: f64,
+        voxel_size_m: f64,
+    ) -> Result<VoxelGrid, ShapeError> {
+        let dims = self.grid_dims(scale)?;
+        let sdf = self.signed_distance(scale, dims);
+        VoxelGrid::from_fn(dims, voxel_size_m, |x, y, z| sdf(x, y, z) <= 0.0)
+    }
+
+    /// The grid's dimensions at `scale`, refused before anything is allocated when too large.
+    fn grid_dims(&self, scale: f64) -> Result<[usize; 3], ShapeError> {
         let ext = self.extent();
         let dim = |e: f64| ((e * scale).round().max(1.0)) as usize;
         let dims = [dim(ext[0]), dim(ext[1]), dim(ext[2])];
-        // Reject absurd sizes before allocating the grid.
         if dims.iter().any(|&d| d > super::MAX_GRID_DIM) {
             return Err(ShapeError::TooLarge { dims });
         }
+        Ok(dims)
+    }
+
+    /// The shape as a signed distance in voxel units on a grid of `dims` (negative inside,
+    /// 1-Lipschitz: exact for spheres and cylinders, max/min combinations of them for walls,
+    /// and a scaled lower bound for the bell's flared profile).
+    fn signed_distance(&self, scale: f64, dims: [usize; 3]) -> Box<dyn Fn(f64, f64, f64) -> f64> {
         let s = scale;
         let (cx, cy) = (dims[0] as f64 / 2.0, dims[1] as f64 / 2.0);
         let radial = move |x: f64, y: f64| ((x - cx).powi(2) + (y - cy).powi(2)).sqrt();
         match *self {
             Primitive::Bar { .. } | Primitive::Plate { .. } | Primitive::Box { .. } => {
-                VoxelGrid::from_fn(dims, voxel_size_m, |_, _, _| true)
+                Box::new(|_, _, _| -1.0)
             }
             Primitive::Sphere { diameter } => {
                 let r = diameter * s / 2.0;
                 let c = dims[2] as f64 / 2.0;
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, z| {
-                    radial(x, y).powi(2) + (z - c).powi(2) <= r * r
-                })
+                Box::new(move |x, y, z| (radial(x, y).powi(2) + (z - c).powi(2)).sqrt() - r)
             }
             Primitive::Cylinder { diameter, .. } => {
                 let r = diameter * s / 2.0;
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, _| radial(x, y) <= r)
+                Box::new(move |x, y, _| radial(x, y) - r)
             }
             Primitive::Tube { diameter, wall, .. } => {
                 let (r, w) = (diameter * s / 2.0, wall * s);
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, _| {
+                Box::new(move |x, y, _| {
                     let d = radial(x, y);
-                    d <= r && d >= r - w
+                    (d - r).max(r - w - d)
                 })
             }
             Primitive::Cup { diameter, wall, .. } => {
                 let (r, w) = (diameter * s / 2.0, wall * s);
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, z| {
+                Box::new(move |x, y, z| {
                     let d = radial(x, y);
-                    d <= r && (d >= r - w || z <= w)
+                    (d - r).max((r - w - d).min(z - w))
                 })
             }
             Primitive::Bowl { diameter, wall } => {
                 // Centre of the sphere at the top face: the lower hemisphere is the bowl.
                 let (r, w) = (diameter * s / 2.0, wall * s);
                 let top = dims[2] as f64;
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, z| {
+                Box::new(move |x, y, z| {
                     let d = (radial(x, y).powi(2) + (z - top).powi(2)).sqrt();
-                    d <= r && d >= r - w
+                    (d - r).max(r - w - d)
                 })
             }
             Primitive::Bell {
@@ -198,10 +225,15 @@ impl Primitive {
                 // Outer radius flares from 0.55 R at the crown to R at the mouth (a quadratic
                 // profile, roughly a church bell's); the crown is a closed cap `w` thick.
                 let outer = move |z: f64| r_mouth * (0.55 + 0.45 * (1.0 - z / h).powi(2));
-                VoxelGrid::from_fn(dims, voxel_size_m, |x, y, z| {
+                // |d outer / dz| <= 0.9 R / h: dividing the radial gaps by sqrt(1 + slope^2)
+                // makes them 1-Lipschitz lower bounds of the distance.
+                let lipschitz = (1.0 + (0.9 * r_mouth / h).powi(2)).sqrt();
+                Box::new(move |x, y, z| {
                     let d = radial(x, y);
                     let ro = outer(z);
-                    d <= ro && (d >= ro - w || z >= h - w)
+                    let outside = (d - ro) / lipschitz;
+                    let inner = (ro - w - d) / lipschitz;
+                    outside.max(inner.min(h - w - z))
                 })
             }
         }
