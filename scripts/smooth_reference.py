@@ -140,12 +140,12 @@ def solve(m, nu):
 def main():
     # (spec, parameters, nu, mesh sizes coarse -> fine)
     cases = [
-        ("bowl:d=16,wall=2", "bowl", {"d": 16, "wall": 2}, [1.5, 1.0]),
-        ("bowl:d=32,wall=2", "bowl", {"d": 32, "wall": 2}, [2.0, 1.4]),
+        ("bowl:d=16,wall=2", "bowl", {"d": 16, "wall": 2}, [1.0, 0.75, 0.55]),
+        ("bowl:d=32,wall=2", "bowl", {"d": 32, "wall": 2}, [1.4, 1.0, 0.8]),
         ("sphere:d=16", "sphere", {"d": 16}, [2.5, 1.8]),
         ("cylinder:d=16,h=32", "cylinder", {"d": 16, "h": 32}, [3.0, 2.2]),
-        ("tube:d=16,h=32,wall=2", "tube", {"d": 16, "h": 32, "wall": 2}, [1.6, 1.1]),
-        ("cup:d=16,h=20,wall=2", "cup", {"d": 16, "h": 20, "wall": 2}, [1.6, 1.1]),
+        ("tube:d=16,h=32,wall=2", "tube", {"d": 16, "h": 32, "wall": 2}, [1.1, 0.8]),
+        ("cup:d=16,h=20,wall=2", "cup", {"d": 16, "h": 20, "wall": 2}, [1.1, 0.8]),
         ("bell:d=24,h=24,wall=2", "bell", {"d": 24, "h": 24, "wall": 2}, [1.6, 1.1]),
     ]
     only = set(sys.argv[1:])

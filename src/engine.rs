@@ -21,6 +21,7 @@
 
 mod audio;
 mod object;
+pub mod pitch;
 mod solvers;
 pub mod spectrum;
 mod voice;

@@ -96,9 +96,8 @@ impl FemModel {
         let mut m = crate::buffer::zeroed(pattern.col.len());
         let ndof = 3 * nloc;
         // Partial voxels: cut elements.
-        let cut = (!grid.is_binary()).then(|| {
-            cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind))
-        });
+        let cut = (!grid.is_binary())
+            .then(|| cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind)));
         let (mut ke_cut, mut me_cut) = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
         let mut scratch = cut::CutScratch::default();
         let mut slots = vec![0usize; nloc * nloc];

@@ -217,7 +217,10 @@ impl VoxelGrid {
         if !self.get(x, y, z) {
             return VoxelFill::Empty;
         }
-        match self.partial.get(&self.index(x as usize, y as usize, z as usize)) {
+        match self
+            .partial
+            .get(&self.index(x as usize, y as usize, z as usize))
+        {
             Some(f) => VoxelFill::Partial(*f),
             None => VoxelFill::Full,
         }
@@ -308,7 +311,11 @@ impl VoxelGrid {
         // A fine voxel inside a partial one takes the fill of the sub-cell holding its centre.
         let n = fill::SUBCELLS_PER_AXIS;
         for (&i, sub) in &self.partial {
-            let c = [i % self.dims[0], (i / self.dims[0]) % self.dims[1], i / (self.dims[0] * self.dims[1])];
+            let c = [
+                i % self.dims[0],
+                (i / self.dims[0]) % self.dims[1],
+                i / (self.dims[0] * self.dims[1]),
+            ];
             for fz in 0..factor {
                 for fy in 0..factor {
                     for fx in 0..factor {

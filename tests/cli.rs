@@ -385,7 +385,7 @@ fn bad_objects_get_one_line_errors() {
         (vec!["--material", "2e11,0,0.3"], "density"),
         (vec!["--material", "vibranium"], "unknown material"),
         (vec!["--shape", "teapot"], "unknown shape"),
-        (vec!["--shape", "tube:d=1,h=4,wall=0.1"], "empty"),
+        (vec!["--shape", "tube:d=1,h=4,wall=0.001"], "empty"),
         (vec!["--shape", "bar:999x4x4"], "exceed"),
         (
             vec!["--shape", junk.to_str().unwrap()],

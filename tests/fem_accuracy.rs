@@ -1,5 +1,6 @@
 //! FEM accuracy against converged references: a cube, a 32x32x2 plate and the papers' 32^3
-//! bowl with a 2-voxel wall (steel, 0.2 m), each solved through the `modalforge modes` path.
+//! bowl with a 2-voxel wall as a binary staircase (steel, 0.2 m), each solved through the
+//! `modalforge modes` path.
 //!
 //! The references (`tests/data/references.json`) are quadratic (hex27) solutions on the same
 //! staircased geometry with every voxel split 2x2x2, computed once by the commands stored beside
@@ -91,7 +92,8 @@ fn plate_32x32x2_lowest_20_within_2_percent_default_and_0_2_percent_quadratic() 
     assert!(e < 0.2, "plate hex27: {e:.3} %");
 }
 
-/// NOT the issue's bound: it asks for 2 %, hex27 on the 32^3 voxels measures 1.2-2.8 % above
+/// The staircase (`--staircase`, today's binary voxels: the geometry these references solve;
+/// the smooth bowl is `tests/partial_voxels.rs`). NOT the issue's bound: it asks for 2 %, hex27 on the 32^3 voxels measures 1.2-2.8 % above
 /// the split-2 reference (worst 2.77 %, first mode). The plate shows the element itself is
 /// accurate (0.08 % with 2 elements across); the bowl's excess comes from the staircase's
 /// re-entrant corners, whose stress singularities converge slowly under refinement. The stored
@@ -104,7 +106,8 @@ fn plate_32x32x2_lowest_20_within_2_percent_default_and_0_2_percent_quadratic() 
 #[test]
 fn bowl_32_wall_2_lowest_10_quadratic_within_3_percent() {
     let reference = reference_hz("bowl");
-    let (hex27, t27) = solve("--shape bowl:d=32,wall=2 --modes 10 --element hex27 --solver lobpcg");
+    let (hex27, t27) =
+        solve("--shape bowl:d=32,wall=2 --staircase --modes 10 --element hex27 --solver lobpcg");
     let e27 = worst_percent(&hex27, &reference, 10);
     assert!(e27 < 3.0, "bowl hex27: {e27:.3} %");
     let split3 = reference_hz("bowl_split3");
@@ -121,7 +124,7 @@ fn bowl_32_wall_2_lowest_10_quadratic_within_3_percent() {
     }
     // The default element on the same voxels, reported beside it (not a bound: measured
     // 6.6-15 %, the issue measured 10-12 % for incompatible modes on this staircased shell).
-    let (hex8i, t8) = solve("--shape bowl:d=32,wall=2 --modes 10 --solver lobpcg");
+    let (hex8i, t8) = solve("--shape bowl:d=32,wall=2 --staircase --modes 10 --solver lobpcg");
     let e8 = worst_percent(&hex8i, &reference, 10);
     eprintln!("bowl 32^3 wall 2, lowest 10: hex27 {e27:.3} % in {t27:.0} ms, hex8i {e8:.2} % in {t8:.0} ms");
     assert!(e8 > e27, "the quadratic element must be the more accurate");

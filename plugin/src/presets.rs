@@ -81,6 +81,9 @@ pub struct StoredObject {
     pub dims: [usize; 3],
     /// [`Sculpt::bits`] as lowercase hex.
     pub voxels: String,
+    /// [`Sculpt::fill`] (the partial voxels) as lowercase hex; absent for a binary object.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub fill: String,
 }
 
 /// One object + material preset.
@@ -159,7 +162,12 @@ impl Preset {
             (Some(spec), None) => Sculpt::from_spec(spec),
             (None, Some(o)) => {
                 let bits = decode_hex(&o.voxels).ok_or("object.voxels is not hex")?;
-                let s = Sculpt { dims: o.dims, bits };
+                let fill = decode_hex(&o.fill).ok_or("object.fill is not hex")?;
+                let s = Sculpt {
+                    dims: o.dims,
+                    bits,
+                    fill,
+                };
                 s.to_grid()?;
                 Ok(s)
             }
@@ -176,6 +184,7 @@ impl Preset {
             object: Some(StoredObject {
                 dims: sculpt.dims,
                 voxels: sculpt.bits.iter().map(|b| format!("{b:02x}")).collect(),
+                fill: sculpt.fill.iter().map(|b| format!("{b:02x}")).collect(),
             }),
             material: "glass".into(),
             youngs_gpa: None,

@@ -21,9 +21,34 @@ fn the_persisted_object_round_trips_and_rejects_bad_states() {
     let huge = Sculpt {
         dims: [64, 64, 64],
         bits: vec![0xFF; 64 * 64 * 8],
+        fill: Vec::new(),
     };
     assert!(huge.to_grid().is_err());
     assert!(Sculpt::from_spec("teapot").is_err());
+    // The default bowl keeps its partial voxels through a save and load.
+    assert!(!grid.is_binary(), "the default bowl has partial voxels");
+    assert_eq!(s.to_grid().unwrap(), grid);
+    // A state from before partial voxels (no `fill`) still loads, as a binary object.
+    let old = serde_json::to_string(&Sculpt {
+        fill: Vec::new(),
+        ..s.clone()
+    })
+    .unwrap();
+    assert!(!old.contains("fill"));
+    let loaded: Sculpt = serde_json::from_str(&old).unwrap();
+    assert!(loaded.to_grid().unwrap().is_binary());
+    // A fill record that is cut short or names an empty voxel is refused.
+    let cut = Sculpt {
+        fill: s.fill[..s.fill.len() - 1].to_vec(),
+        ..s.clone()
+    };
+    assert!(cut.to_grid().unwrap_err().contains("multiple"));
+    let mut stray = s.clone();
+    stray.fill[..4].copy_from_slice(&0u32.to_le_bytes());
+    assert!(stray
+        .to_grid()
+        .unwrap_err()
+        .contains("not an occupied voxel"));
 }
 
 #[test]

@@ -131,17 +131,25 @@ impl AudioEngine {
         self.config.mode_budget = modes.max(1);
     }
 
-    /// The object's lowest playable frequency at its own size under the current voicing, Hz
-    /// (the reference of the "pitch" key mapping). Never allocates.
+    /// The pitch the object sounds at its own size under the current voicing, Hz: the
+    /// energy-weighted centre of its lowest cluster of partials ([`super::pitch`]), the
+    /// reference of the "pitch" key mapping. Weights are the modes' energies at the last
+    /// strike's hit point (equal before the first strike). Never allocates.
+    ///
+    /// (A pitch-mode strike first makes the forces its own hit's.)
     pub fn fundamental_hz(&self) -> Option<f64> {
         let obj = self.object.as_ref()?;
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        obj.basis
+        let partials = obj
+            .basis
             .solution
             .eigenvalues
             .iter()
-            .find_map(|&l| tune(&self.voicing, l, h, 0.0, self.sample_rate_hz))
-            .map(|(f, _)| f)
+            .zip(&obj.forces)
+            .filter_map(|(&l, &force)| {
+                tune(&self.voicing, l, h, 0.0, self.sample_rate_hz).map(|(f, _)| (f, force * force))
+            });
+        super::pitch::cluster_pitch_hz(partials)
     }
 
     /// Modes ringing now.
@@ -271,7 +279,15 @@ impl AudioEngine {
             } => {
                 let ratio = match pitch {
                     Pitch::Ratio(r) => Some(r),
-                    Pitch::Fundamental(f) => self.fundamental_hz().map(|f0| f / f0),
+                    Pitch::Fundamental(f) => {
+                        // The pitch's energy weights are this strike's (cached per hit point;
+                        // a bad hit is refused by `strike` below).
+                        let at = hit.unwrap_or(self.voicing.hit);
+                        if let Some(o) = self.object.as_mut() {
+                            let _ = o.update_forces(&at);
+                        }
+                        self.fundamental_hz().map(|f0| f / f0)
+                    }
                 };
                 match ratio {
                     Some(r) => self.strike(key, r, velocity, hit, hardness_s),

@@ -108,7 +108,11 @@ impl CutElement {
     /// The element matrices (`3 n` square, row-major, like [`super::UnitElement`]) of a voxel
     /// whose sub-cells (x fastest) are filled to the fractions `fill` (each in `[0, 1]`).
     pub fn matrices(&self, fill: &[f64], k: &mut [f64], m: &mut [f64], scratch: &mut CutScratch) {
-        assert_eq!(fill.len(), self.stiffness.len(), "one fraction per sub-cell");
+        assert_eq!(
+            fill.len(),
+            self.stiffness.len(),
+            "one fraction per sub-cell"
+        );
         scratch.kfull.clear();
         scratch.kfull.resize(self.stiffness[0].len(), 0.0);
         m.fill(0.0);
@@ -213,7 +217,13 @@ mod tests {
             cut.matrices(&fill, &mut k, &mut m, &mut CutScratch::default());
             let ones: Vec<f64> = (0..n).map(|i| (i % 3 == 0) as u8 as f64).collect();
             let zs: Vec<f64> = (0..n)
-                .map(|i| if i % 3 == 0 { unit.node_position(i / 3)[2] } else { 0.0 })
+                .map(|i| {
+                    if i % 3 == 0 {
+                        unit.node_position(i / 3)[2]
+                    } else {
+                        0.0
+                    }
+                })
                 .collect();
             let form = |a: &[f64], b: &[f64]| -> f64 {
                 (0..n)

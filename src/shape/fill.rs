@@ -5,7 +5,8 @@
 //! [`SUBCELLS_PER_AXIS`]`^3` sub-cells inside the shape. The FEM integrates stiffness and mass
 //! over exactly those fractions ([`crate::fem::cut`], the finite cell method), which is what
 //! keeps a voxelised bowl's degenerate mode pairs together and its pitch right. Primitives
-//! rasterise through [`rasterize_sdf`]; MagicaVoxel files and sculpting stay binary.
+//! rasterise through [`voxel_fill`], closed meshes through [`super::mesh::voxelize`];
+//! MagicaVoxel files and sculpting stay binary.
 //!
 //! The sub-cell count was chosen by measurement: the split of the lowest mode pair of the
 //! 16- and 32-voxel bowls, and their frequencies against a smooth-geometry reference, with 1, 2
@@ -101,14 +102,7 @@ pub enum VoxelFill {
 
 /// A voxel filled to `fraction` throughout (empty or full at the ends).
 pub fn uniform(fraction: f64) -> VoxelFill {
-    let f = SubFill::from_fractions([fraction; SUBCELLS]);
-    if f.is_full() {
-        VoxelFill::Full
-    } else if f.mean() < MIN_VOXEL_FILL {
-        VoxelFill::Empty
-    } else {
-        VoxelFill::Partial(f)
-    }
+    fill_of([fraction; SUBCELLS])
 }
 
 /// Rasterises a shape given by a signed distance `sdf(x, y, z)` in voxel units (negative
@@ -145,6 +139,12 @@ pub fn voxel_fill(sdf: &impl Fn(f64, f64, f64) -> f64, voxel: [usize; 3]) -> Vox
         }
         *frac = inside as f64 / (m * m * m) as f64;
     }
+    fill_of(fractions)
+}
+
+/// What a voxel with these sub-cell fractions is: full when every sub-cell rounds to full,
+/// empty under [`MIN_VOXEL_FILL`], else partial.
+pub fn fill_of(fractions: [f64; SUBCELLS]) -> VoxelFill {
     let fill = SubFill::from_fractions(fractions);
     if fill.is_full() {
         VoxelFill::Full

@@ -84,13 +84,20 @@ pub fn parse_vox(bytes: &[u8], name: &str, voxel_size_m: f64) -> Result<VoxelGri
     Ok(grid)
 }
 
-/// Encodes a grid as `.vox` bytes.
+/// Half full: a partial voxel at least this full is solid in a `.vox` file, emptier ones are
+/// left out. MagicaVoxel voxels are binary; this keeps the filled volume closest to the true
+/// one (a voxel is kept when most of it is material).
+pub const VOX_EXPORT_THRESHOLD: f64 = 0.5;
+
+/// Encodes a grid as `.vox` bytes; partial voxels are thresholded at
+/// [`VOX_EXPORT_THRESHOLD`] (the format has no fractions).
 pub fn encode_vox(grid: &VoxelGrid) -> Result<Vec<u8>, VoxError> {
     let dims = grid.dims();
     if dims.iter().any(|&d| d > 256) {
         return Err(VoxError::TooLarge(dims));
     }
     let voxels = grid
+        .thresholded(VOX_EXPORT_THRESHOLD)
         .solid_voxels()
         .into_iter()
         .map(|[x, y, z]| dot_vox::Voxel {
@@ -140,15 +147,20 @@ mod tests {
 
     #[test]
     fn round_trip_keeps_every_voxel() {
-        let grid = Primitive::Bowl {
+        let bowl = Primitive::Bowl {
             diameter: 16.0,
             wall: 2.0,
-        }
-        .rasterize(1.0, 0.01)
-        .unwrap();
+        };
+        let grid = bowl.rasterize_staircase(1.0, 0.01).unwrap();
         let bytes = encode_vox(&grid).unwrap();
         let back = parse_vox(&bytes, "mem", 0.01).unwrap();
         assert_eq!(back, grid);
+        // Partial voxels are written solid when at least half full.
+        let smooth = bowl.rasterize(1.0, 0.01).unwrap();
+        assert!(!smooth.is_binary());
+        let back = parse_vox(&encode_vox(&smooth).unwrap(), "mem", 0.01).unwrap();
+        assert_eq!(back, smooth.thresholded(VOX_EXPORT_THRESHOLD));
+        assert!(back.count() < smooth.count());
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! Independent references shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod smooth;
+
 /// 4x4 matrix exponential by scaling and squaring with a Taylor series.
 fn expm(a: [[f64; 4]; 4]) -> [[f64; 4]; 4] {
     let norm = a

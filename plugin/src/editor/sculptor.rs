@@ -8,9 +8,9 @@
 
 use crate::sculpt::{Sculpt, MAX_SIDE};
 use modalforge::shape::spec::ShapeSpec;
-use modalforge::shape::VoxelGrid;
+use modalforge::shape::{VoxelFill, VoxelGrid};
 
-/// Undo steps kept (each is one packed object, at most 4 KiB).
+/// Undo steps kept (each is one working box: 32 KiB plus its partial voxels).
 const UNDO_DEPTH: usize = 100;
 
 /// Smallest object side a primitive or a resample may ask for.
@@ -22,9 +22,10 @@ pub const BOX_SIDE: usize = MAX_SIDE;
 /// Voxel editing with history.
 #[derive(Clone, Debug)]
 pub struct Sculptor {
-    cells: Vec<bool>,
-    undo: Vec<Vec<bool>>,
-    redo: Vec<Vec<bool>>,
+    /// The working box, [`BOX_SIDE`]^3 voxels of edge 1; partial voxels keep their fill.
+    cells: VoxelGrid,
+    undo: Vec<VoxelGrid>,
+    redo: Vec<VoxelGrid>,
     /// Brush radius in voxels (0 = one voxel).
     pub brush_radius: usize,
     /// Mirror edits across the box's centre plane normal to x, y, z.
@@ -36,7 +37,7 @@ impl Sculptor {
     pub fn new(sculpt: &Sculpt) -> Result<Self, String> {
         let grid = sculpt.to_grid()?;
         let mut s = Self {
-            cells: Vec::new(),
+            cells: empty_box(),
             undo: Vec::new(),
             redo: Vec::new(),
             brush_radius: 0,
@@ -53,31 +54,31 @@ impl Sculptor {
 
     /// Whether cell `c` is solid (outside the box is empty).
     pub fn get(&self, c: [i64; 3]) -> bool {
-        self.index(c).is_some_and(|i| self.cells[i])
+        self.cells.get(c[0] as isize, c[1] as isize, c[2] as isize)
     }
 
-    /// Solid voxels.
+    /// What cell `c` holds: empty, full, or a partial voxel's fill.
+    pub fn fill(&self, c: [i64; 3]) -> VoxelFill {
+        self.cells
+            .fill_at(c[0] as isize, c[1] as isize, c[2] as isize)
+    }
+
+    /// Solid (full or partial) voxels.
     pub fn count(&self) -> usize {
-        self.cells.iter().filter(|&&s| s).count()
+        self.cells.count()
     }
 
-    fn index(&self, c: [i64; 3]) -> Option<usize> {
-        let n = BOX_SIDE as i64;
-        c.iter()
-            .all(|&v| (0..n).contains(&v))
-            .then(|| (c[0] + n * (c[1] + n * c[2])) as usize)
+    fn inside(c: [i64; 3]) -> bool {
+        c.iter().all(|&v| (0..BOX_SIDE as i64).contains(&v))
     }
 
-    /// The object as persisted and solved: the box cropped to the solid voxels, or an error if
-    /// nothing is solid.
+    /// The object as persisted and solved: the box cropped to the solid voxels (partial ones
+    /// keep their fill), or an error if nothing is solid.
     pub fn sculpt(&self) -> Result<Sculpt, String> {
-        let (lo, dims) = self.bounds().ok_or("the object is empty: add voxels")?;
-        // `from_fn` passes voxel centres (x + 0.5, ...).
-        let grid = VoxelGrid::from_fn(dims, 1.0, |x, y, z| {
-            self.get([0, 1, 2].map(|a| lo[a] + [x, y, z][a].floor() as i64))
-        })
-        .map_err(|e| e.to_string())?;
-        Ok(Sculpt::from_grid(&grid))
+        if self.cells.count() == 0 {
+            return Err("the object is empty: add voxels".into());
+        }
+        Ok(Sculpt::from_grid(&self.cells.cropped()))
     }
 
     /// Lowest solid corner and the solid voxels' bounding dimensions (the solved grid's),
@@ -101,7 +102,7 @@ impl Sculptor {
     }
 
     /// Adds (or with `solid = false` removes) a ball of `brush_radius` voxels at `cell`, and its
-    /// mirror images; one undo step. Cells outside the box are skipped. Removing the last voxel
+    /// mirror images; one undo step. Painted voxels become full (or empty), partial ones too. Cells outside the box are skipped. Removing the last voxel
     /// is refused (an empty object cannot be solved). Returns whether anything changed.
     pub fn paint(&mut self, cell: [i64; 3], solid: bool) -> bool {
         let before = self.cells.clone();
@@ -128,14 +129,16 @@ impl Sculptor {
                         if dx * dx + dy * dy + dz * dz > r * r {
                             continue;
                         }
-                        if let Some(i) = self.index([c[0] + dx, c[1] + dy, c[2] + dz]) {
-                            self.cells[i] = solid;
+                        let p = [c[0] + dx, c[1] + dy, c[2] + dz];
+                        if Self::inside(p) {
+                            self.cells
+                                .set(p[0] as usize, p[1] as usize, p[2] as usize, solid);
                         }
                     }
                 }
             }
         }
-        if !self.cells.contains(&true) {
+        if self.cells.count() == 0 {
             self.cells = before;
             return false;
         }
@@ -199,8 +202,8 @@ impl Sculptor {
         Ok(())
     }
 
-    /// Resamples the object so its longest side is `side` voxels (nearest voxel centre);
-    /// one undo step.
+    /// Resamples the object so its longest side is `side` voxels (nearest voxel centre; a
+    /// partial voxel's fill goes with it); one undo step.
     pub fn resample(&mut self, side: usize) -> Result<(), String> {
         let side = side.clamp(MIN_SIDE, MAX_SIDE);
         let (lo, dims) = self.bounds().ok_or("the object is empty: add voxels")?;
@@ -210,12 +213,16 @@ impl Sculptor {
         }
         let s = side as f64 / longest as f64;
         let new_dims = dims.map(|d| ((d as f64 * s).round() as usize).max(1));
-        // `from_fn` passes voxel centres; each takes the voxel its centre falls in.
-        let grid = VoxelGrid::from_fn(new_dims, 1.0, |x, y, z| {
-            let src = [x, y, z].map(|v| (v / s).floor() as i64);
-            self.get([lo[0] + src[0], lo[1] + src[1], lo[2] + src[2]])
-        })
-        .map_err(|e| e.to_string())?;
+        // Each voxel takes the voxel its centre falls in.
+        let mut grid = VoxelGrid::new(new_dims, 1.0).map_err(|e| e.to_string())?;
+        for z in 0..new_dims[2] {
+            for y in 0..new_dims[1] {
+                for x in 0..new_dims[0] {
+                    let src = [x, y, z].map(|v| ((v as f64 + 0.5) / s).floor() as i64);
+                    grid.set_fill(x, y, z, self.fill([0, 1, 2].map(|a| lo[a] + src[a])));
+                }
+            }
+        }
         if grid.count() == 0 {
             return Err(format!("at {side} voxels the object vanishes: use more"));
         }
@@ -261,22 +268,22 @@ impl Sculptor {
         let dims = grid.dims();
         let side = BOX_SIDE;
         let lo = at.unwrap_or_else(|| [0, 1, 2].map(|a| (side.saturating_sub(dims[a]) / 2) as i64));
-        self.cells = vec![false; side * side * side];
+        self.cells = empty_box();
         for z in 0..dims[2] {
             for y in 0..dims[1] {
                 for x in 0..dims[0] {
-                    if grid.get(x as isize, y as isize, z as isize) {
-                        let c = [lo[0] + x as i64, lo[1] + y as i64, lo[2] + z as i64];
-                        if let Some(i) = self.index(c) {
-                            self.cells[i] = true;
-                        }
+                    let fill = grid.fill_at(x as isize, y as isize, z as isize);
+                    let c = [lo[0] + x as i64, lo[1] + y as i64, lo[2] + z as i64];
+                    if fill != VoxelFill::Empty && Self::inside(c) {
+                        self.cells
+                            .set_fill(c[0] as usize, c[1] as usize, c[2] as usize, fill);
                     }
                 }
             }
         }
     }
 
-    fn commit(&mut self, before: Vec<bool>) -> bool {
+    fn commit(&mut self, before: VoxelGrid) -> bool {
         if before == self.cells {
             return false;
         }
@@ -284,11 +291,16 @@ impl Sculptor {
         true
     }
 
-    fn push_undo(&mut self, before: Vec<bool>) {
+    fn push_undo(&mut self, before: VoxelGrid) {
         self.undo.push(before);
         if self.undo.len() > UNDO_DEPTH {
             self.undo.remove(0);
         }
         self.redo.clear();
     }
+}
+
+/// An empty working box.
+fn empty_box() -> VoxelGrid {
+    VoxelGrid::new([BOX_SIDE; 3], 1.0).expect("the working box is a valid grid")
 }

@@ -5,6 +5,7 @@
 use super::sculptor::{Sculptor, BOX_SIDE};
 use super::view3d::{self, Camera, NORMALS};
 use super::*;
+use modalforge::shape::VoxelFill;
 
 fn block(dims: [usize; 3]) -> Sculpt {
     let grid = modalforge::shape::VoxelGrid::from_fn(dims, 1.0, |_, _, _| true).unwrap();
@@ -338,4 +339,29 @@ fn the_status_line_says_which_answer_plays_and_its_error() {
         line.contains("(fem)") && !line.contains("playing"),
         "{line}"
     );
+}
+
+#[test]
+fn partial_voxels_are_drawn_as_their_filled_volume() {
+    // The default bowl keeps its cut voxels: each is drawn as a box of exactly its filled
+    // volume (to f32 rounding), inside its own cell, so the view shows the smooth surface.
+    let s = Sculptor::new(&Sculpt::default()).unwrap();
+    let n = s.side() as i64;
+    let mut partial = 0;
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let fill = s.fill([x, y, z]);
+                let VoxelFill::Partial(sub) = fill else {
+                    continue;
+                };
+                let (lo, hi) = view3d::cell_box(&fill);
+                let volume: f32 = (0..3).map(|a| hi[a] - lo[a]).product();
+                assert!((volume as f64 - sub.mean()).abs() < 1e-5, "{volume}");
+                assert!((0..3).all(|a| lo[a] >= 0.0 && hi[a] <= 1.0 + 1e-6));
+                partial += 1;
+            }
+        }
+    }
+    assert!(partial > 100, "{partial} partial voxels");
 }

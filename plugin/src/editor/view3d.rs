@@ -6,6 +6,7 @@
 //! geometry, no egui types, so picking is tested without a window.
 
 use super::sculptor::Sculptor;
+use modalforge::shape::VoxelFill;
 
 /// A 3D vector.
 pub type V3 = [f32; 3];
@@ -125,7 +126,9 @@ pub struct Face {
     pub depth: f32,
 }
 
-/// The exposed faces turned towards the camera, farthest first.
+/// The exposed faces turned towards the camera, farthest first. A partial voxel is drawn as
+/// a smaller box of its filled volume, placed at its fill's centroid ([`cell_box`]); a full
+/// voxel's face towards a partial neighbour stays visible.
 pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
     let (_, _, f) = camera.basis();
     let n = sculptor.side() as i64;
@@ -134,20 +137,24 @@ pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
         for y in 0..n {
             for x in 0..n {
                 let c = [x, y, z];
-                if !sculptor.get(c) {
+                let fill = sculptor.fill(c);
+                if fill == VoxelFill::Empty {
                     continue;
                 }
+                let bx = cell_box(&fill);
                 let centre = c.map(|v| v as f32 + 0.5);
                 let cell_depth = camera.project(centre).1;
                 for (k, d) in NORMALS.iter().enumerate() {
                     let nf = d.map(|v| v as f32);
-                    if dot(nf, f) >= 0.0 || sculptor.get([x + d[0], y + d[1], z + d[2]]) {
+                    let neighbour = sculptor.fill([x + d[0], y + d[1], z + d[2]]);
+                    let hidden = neighbour == VoxelFill::Full && fill == VoxelFill::Full;
+                    if dot(nf, f) >= 0.0 || hidden {
                         continue;
                     }
                     faces.push(Face {
                         cell: c,
                         normal: k,
-                        corners: face_corners(c, k),
+                        corners: face_corners(c, k, bx),
                         depth: cell_depth,
                     });
                 }
@@ -158,18 +165,57 @@ pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
     faces
 }
 
-/// The four corners of face `k` of cell `c`.
-fn face_corners(c: [i64; 3], k: usize) -> [V3; 4] {
+/// The box a voxel is drawn as, in cell units (`lo`, `hi` per axis within `[0, 1]`): the
+/// whole cell when full; for a partial voxel a cube of its filled volume centred on its fill's
+/// centroid, kept inside the cell.
+pub fn cell_box(fill: &VoxelFill) -> ([f32; 3], [f32; 3]) {
+    match fill {
+        VoxelFill::Partial(sub) => {
+            let side = sub.mean().cbrt() as f32;
+            let centroid = sub.centroid_offset();
+            let lo =
+                [0, 1, 2].map(|a| (0.5 + centroid[a] as f32 - side / 2.0).clamp(0.0, 1.0 - side));
+            (lo, [0, 1, 2].map(|a| lo[a] + side))
+        }
+        _ => ([0.0; 3], [1.0; 3]),
+    }
+}
+
+/// Where the ray `o + t d` enters the box `lo..hi` (slab test): `t` and the axis of the face it
+/// enters through; `None` if it misses.
+fn ray_box(o: V3, d: V3, lo: V3, hi: V3) -> Option<(f32, usize)> {
+    let (mut t0, mut t1, mut axis) = (f32::NEG_INFINITY, f32::INFINITY, 0);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        if ta.min(tb) > t0 {
+            t0 = ta.min(tb);
+            axis = a;
+        }
+        t1 = t1.min(ta.max(tb));
+    }
+    (t0 <= t1).then_some((t0, axis))
+}
+
+/// The four corners of face `k` of cell `c` drawn as the box `bx` ([`cell_box`]).
+fn face_corners(c: [i64; 3], k: usize, bx: ([f32; 3], [f32; 3])) -> [V3; 4] {
+    let (lo, hi) = bx;
     let axis = k / 2;
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-    let mut base = c.map(|v| v as f32);
+    let mut base = [0, 1, 2].map(|a| c[a] as f32 + lo[a]);
     if k % 2 == 1 {
-        base[axis] += 1.0;
+        base[axis] = c[axis] as f32 + hi[axis];
     }
+    let (su, sv) = (hi[u] - lo[u], hi[v] - lo[v]);
     let at = |du: f32, dv: f32| {
         let mut p = base;
-        p[u] += du;
-        p[v] += dv;
+        p[u] += du * su;
+        p[v] += dv * sv;
         p
     };
     [at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)]
@@ -257,14 +303,30 @@ pub fn pick(sculptor: &Sculptor, camera: &Camera, offset: [f32; 2]) -> Option<Pi
         .unwrap_or(0);
     let mut t_enter = t0;
     loop {
-        if sculptor.get(cell) {
-            let normal = 2 * entered + usize::from(step[entered] < 0);
-            let point = [0, 1, 2].map(|a| o[a] + t_enter * d[a]);
-            return Some(Pick {
-                cell,
-                normal,
-                point,
-            });
+        match sculptor.fill(cell) {
+            VoxelFill::Empty => {}
+            VoxelFill::Full => {
+                let normal = 2 * entered + usize::from(step[entered] < 0);
+                let point = [0, 1, 2].map(|a| o[a] + t_enter * d[a]);
+                return Some(Pick {
+                    cell,
+                    normal,
+                    point,
+                });
+            }
+            partial => {
+                // A partial voxel is hit where its drawn box is.
+                let (lo, hi) = cell_box(&partial);
+                let lo = [0, 1, 2].map(|a| cell[a] as f32 + lo[a]);
+                let hi = [0, 1, 2].map(|a| cell[a] as f32 + hi[a]);
+                if let Some((t, axis)) = ray_box(o, d, lo, hi) {
+                    return Some(Pick {
+                        cell,
+                        normal: 2 * axis + usize::from(step[axis] < 0),
+                        point: [0, 1, 2].map(|a| o[a] + t * d[a]),
+                    });
+                }
+            }
         }
         let a = (0..3)
             .min_by(|&x, &y| t_max[x].total_cmp(&t_max[y]))

@@ -1,0 +1,82 @@
+//! Partial voxels against the smooth geometry (issue 19): for every curved primitive with a
+//! smooth reference (`tests/data/smooth_references.json`, `scripts/smooth_reference.py`), the
+//! staircase and the partial-voxel (finite cell) rasterisations with each element kind:
+//! - **split**: the largest frequency split of a degenerate group of the smooth solid among
+//!   the lowest 12 modes (exactly 0 for the true object);
+//! - **error**: the worst frequency error of the lowest 10 modes against the reference;
+//! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs.
+//!
+//! `cargo bench --bench partial_voxels` (all shapes; hex27 only up to 80k DOFs);
+//! `-- --quick` for the two bowls.
+
+#[path = "../tests/common/smooth.rs"]
+mod smooth;
+
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::fem::{ElementKind, FemModel};
+use modalforge::modal::ModeBasis;
+use modalforge::shape::spec::ShapeSpec;
+use modalforge::shape::VoxelGrid;
+use std::time::Instant;
+
+/// Largest hex27 model the full run solves (the 32-voxel bowl's is 137k DOFs, ~10 s).
+const MAX_HEX27_DOFS: usize = 150_000;
+
+fn median_assembly_ms(grid: &VoxelGrid, kind: ElementKind) -> (f64, usize) {
+    let mut times = Vec::new();
+    let mut dofs = 0;
+    for _ in 0..5 {
+        let t = Instant::now();
+        let model = FemModel::assemble(grid, kind, smooth::NU).expect("assemble");
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        dofs = model.dofs();
+    }
+    times.sort_by(f64::total_cmp);
+    (times[2], dofs)
+}
+
+fn main() {
+    faer::set_global_parallelism(faer::Par::Seq);
+    let quick = std::env::args().any(|a| a == "--quick");
+    println!(
+        "{:<24} {:<9} {:<6} {:>7} {:>9} {:>9} {:>12}",
+        "shape", "voxels", "element", "DOFs", "split %", "error %", "assembly ms"
+    );
+    for spec in smooth::specs() {
+        if quick && !spec.starts_with("bowl") {
+            continue;
+        }
+        let want = smooth::reference(&spec);
+        let ShapeSpec::Primitive { shape, .. } = spec.parse::<ShapeSpec>().expect("spec") else {
+            panic!("{spec}: not a primitive")
+        };
+        for (voxels, grid) in [
+            (
+                "staircase",
+                shape.rasterize_staircase(1.0, 1.0).expect("raster"),
+            ),
+            ("partial", shape.rasterize(1.0, 1.0).expect("raster")),
+        ] {
+            for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27] {
+                let (ms, dofs) = median_assembly_ms(&grid, kind);
+                if kind == ElementKind::Hex27 && dofs > MAX_HEX27_DOFS {
+                    continue;
+                }
+                let options = EigenOptions {
+                    count: ModeCount::First(16),
+                    tolerance: 1e-8,
+                    ..EigenOptions::default()
+                };
+                let basis = ModeBasis::solve(&grid, kind, smooth::NU, SolverKind::Auto, &options)
+                    .expect("solve");
+                let got = &basis.solution.eigenvalues;
+                let (split, _) = smooth::worst_split(got, &want, 12);
+                let error = smooth::worst(&smooth::frequency_errors(got, &want, 10));
+                println!(
+                    "{spec:<24} {voxels:<9} {:<6} {dofs:>7} {split:>9.3} {error:>9.2} {ms:>12.1}",
+                    kind.name()
+                );
+            }
+        }
+    }
+}
