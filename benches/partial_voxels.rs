@@ -7,7 +7,8 @@
 //! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs.
 //!
 //! `cargo bench --bench partial_voxels` (all shapes; hex27 only up to 80k DOFs);
-//! `-- --quick` for the two bowls.
+//! `-- --quick` for the two bowls; `-- --assembly` repeats the 32-voxel bowl's hex8i assembly
+//! (for a profiler).
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
@@ -38,6 +39,20 @@ fn median_assembly_ms(grid: &VoxelGrid, kind: ElementKind) -> (f64, usize) {
 fn main() {
     faer::set_global_parallelism(faer::Par::Seq);
     let quick = std::env::args().any(|a| a == "--quick");
+    if std::env::args().any(|a| a == "--assembly") {
+        // Assembly only, repeated (for a profiler): the 32-voxel bowl, partial voxels, hex8i.
+        let ShapeSpec::Primitive { shape, .. } = "bowl:d=32,wall=2".parse::<ShapeSpec>().unwrap()
+        else {
+            unreachable!()
+        };
+        let grid = shape.rasterize(1.0, 1.0).expect("raster");
+        let (ms, dofs) = median_assembly_ms(&grid, ElementKind::Hex8Incompatible);
+        for _ in 0..40 {
+            median_assembly_ms(&grid, ElementKind::Hex8Incompatible);
+        }
+        println!("assembly {ms:.1} ms, {dofs} DOFs");
+        return;
+    }
     println!(
         "{:<24} {:<9} {:<6} {:>7} {:>9} {:>9} {:>12}",
         "shape", "voxels", "element", "DOFs", "split %", "error %", "assembly ms"

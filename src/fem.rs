@@ -94,24 +94,41 @@ impl FemModel {
         let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
         let mut k = crate::buffer::zeroed(pattern.col.len());
         let mut m = crate::buffer::zeroed(pattern.col.len());
-        let ndof = 3 * nloc;
-        // Partial voxels: cut elements.
+        // Partial voxels: cut elements, evaluated in batches.
         let cut = (!grid.is_binary())
             .then(|| cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind)));
-        let (mut ke_cut, mut me_cut) = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
-        let mut scratch = cut::CutScratch::default();
+        let mut scratch = cut.as_ref().map(|c| c.scratch());
+        let mut pending: Vec<(usize, Vec<f64>)> = Vec::with_capacity(cut::CUT_BATCH);
         let mut slots = vec![0usize; nloc * nloc];
-        for (v, nodes) in voxels.iter().zip(elements.chunks_exact(nloc)) {
-            let (ke, me) = match (grid.subcell_fill(grid.index(v[0], v[1], v[2])), &cut) {
-                (Some(fill), Some(cut)) => {
-                    let fractions = fill.coarsened(cut.per_axis());
-                    cut.matrices(&fractions, &mut ke_cut, &mut me_cut, &mut scratch);
-                    (&ke_cut[..], &me_cut[..])
+        let mut flush =
+            |pending: &mut Vec<(usize, Vec<f64>)>, k: &mut [[f64; 9]], m: &mut [[f64; 9]]| {
+                if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
+                    let fills: Vec<&[f64]> = pending.iter().map(|(_, f)| &f[..]).collect();
+                    cut.matrices_batch(&fills, scratch, |j, ke, me| {
+                        let e = pending[j].0;
+                        let nodes = &elements[e * nloc..(e + 1) * nloc];
+                        sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
+                    });
                 }
-                _ => (&unit.stiffness[..], &unit.mass[..]),
+                pending.clear();
             };
-            sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut slots);
+        let mut unit_slots = vec![0usize; nloc * nloc];
+        for (e, v) in voxels.iter().enumerate() {
+            match (grid.subcell_fill(grid.index(v[0], v[1], v[2])), &cut) {
+                (Some(fill), Some(cut)) => {
+                    pending.push((e, fill.coarsened(cut.per_axis())));
+                    if pending.len() == cut::CUT_BATCH {
+                        flush(&mut pending, &mut k, &mut m);
+                    }
+                }
+                _ => {
+                    let nodes = &elements[e * nloc..(e + 1) * nloc];
+                    let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
+                    sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
+                }
+            }
         }
+        flush(&mut pending, &mut k, &mut m);
         Ok(FemModel {
             kind,
             poisson_ratio,

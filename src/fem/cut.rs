@@ -11,6 +11,13 @@
 //! positive definite when sub-cells are empty, as the finite cell method's `alpha` does.
 
 use super::element::{condense, elasticity, integrate_box, BoxIntegrals, ElementKind};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, Par};
+
+/// Partial voxels evaluated together: their fill-weighted sums are one matrix product per
+/// batch (`[entries x sub-cells] x [sub-cells x batch]`), which runs at matrix-product speed
+/// instead of one axpy per sub-cell per element.
+pub const CUT_BATCH: usize = 64;
 
 /// Stiffness and mass kept in an empty sub-cell of a partial voxel, relative to a full one. It
 /// changes a bowl's frequencies by far less than the solver tolerance but keeps every element
@@ -36,24 +43,32 @@ pub fn subcells_per_axis(kind: ElementKind) -> usize {
 pub struct CutElement {
     kind: ElementKind,
     per_axis: usize,
-    /// Uncondensed stiffness of each sub-cell (x fastest), `(3 (n + bubbles))^2` entries each.
-    stiffness: Vec<Vec<f64>>,
-    /// Mass of each sub-cell, `(3 n)^2` entries each.
-    mass: Vec<Vec<f64>>,
-    /// `int B dV` of each bubble DOF over each sub-cell (hex8i only): the Taylor correction.
-    bubble_strain: Vec<Vec<[f64; 6]>>,
-    /// `int B dV` of each nodal DOF over each sub-cell (hex8i only).
-    nodal_strain: Vec<Vec<[f64; 6]>>,
-    /// Volume of one sub-cell (unit cube = 1).
-    subcell_volume: f64,
+    /// Uncondensed stiffness of each sub-cell (x fastest) as the columns of one matrix,
+    /// `(3 (n + bubbles))^2` rows, one column per sub-cell.
+    stiffness: Mat<f64>,
+    /// Mass of each sub-cell, `(3 n)^2` rows, one column per sub-cell.
+    mass: Mat<f64>,
+    /// Rows of `stiffness` that are the uncondensed stiffness; for hex8i the rest are, per
+    /// sub-cell, `int B dV` of the 9 bubble DOFs and the 24 nodal DOFs (Voigt, 6 each) and the
+    /// sub-cell's volume: the Taylor correction's sums.
+    kfull_len: usize,
     /// Elasticity matrix (E = 1).
     elasticity: [[f64; 6]; 6],
 }
 
-/// Reusable buffers for [`CutElement::matrices`].
-#[derive(Clone, Debug, Default)]
+/// Reusable buffers for [`CutElement::matrices_batch`].
+#[derive(Clone, Debug)]
 pub struct CutScratch {
-    kfull: Vec<f64>,
+    /// Sub-cell weights of the batch, one column per element.
+    weights: Mat<f64>,
+    /// Uncondensed stiffness of the batch, one column per element.
+    kfull: Mat<f64>,
+    /// Mass of the batch, one column per element.
+    mass: Mat<f64>,
+    /// One element's uncondensed stiffness (Taylor-corrected in place).
+    column: Vec<f64>,
+    /// One element's condensed stiffness.
+    k: Vec<f64>,
     condense: Vec<f64>,
 }
 
@@ -62,8 +77,8 @@ impl CutElement {
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);
         let step = 2.0 / per_axis as f64;
-        let mut stiffness = Vec::new();
-        let mut mass = Vec::new();
+        let mut stiffness: Vec<Vec<f64>> = Vec::new();
+        let mut mass: Vec<Vec<f64>> = Vec::new();
         let mut bubble_strain = Vec::new();
         let mut nodal_strain = Vec::new();
         let ndof = 3 * kind.nodes();
@@ -88,14 +103,31 @@ impl CutElement {
                 }
             }
         }
+        // hex8i: the integrated strains and the volume ride along as extra rows of the
+        // stiffness table, so one product also gives the Taylor correction's sums.
+        let subcell_volume = (1.0 / per_axis as f64).powi(3);
+        for (c, k) in stiffness.iter_mut().enumerate() {
+            if kind == ElementKind::Hex8Incompatible {
+                k.extend(bubble_strain[c].iter().flatten());
+                k.extend(nodal_strain[c].iter().flatten());
+                k.push(subcell_volume);
+            }
+        }
+        let table = |cols: &[Vec<f64>]| Mat::from_fn(cols[0].len(), cols.len(), |i, j| cols[j][i]);
+        let kfull_len = {
+            let nall = if kind == ElementKind::Hex8Incompatible {
+                kind.nodes() + 3
+            } else {
+                kind.nodes()
+            };
+            9 * nall * nall
+        };
         Self {
             kind,
             per_axis,
-            stiffness,
-            mass,
-            bubble_strain,
-            nodal_strain,
-            subcell_volume: (1.0 / per_axis as f64).powi(3),
+            stiffness: table(&stiffness),
+            mass: table(&mass),
+            kfull_len,
             elasticity: elasticity(nu),
         }
     }
@@ -105,72 +137,104 @@ impl CutElement {
         self.per_axis
     }
 
-    /// The element matrices (`3 n` square, row-major, like [`super::UnitElement`]) of a voxel
-    /// whose sub-cells (x fastest) are filled to the fractions `fill` (each in `[0, 1]`).
-    pub fn matrices(&self, fill: &[f64], k: &mut [f64], m: &mut [f64], scratch: &mut CutScratch) {
-        assert_eq!(
-            fill.len(),
-            self.stiffness.len(),
-            "one fraction per sub-cell"
-        );
-        scratch.kfull.clear();
-        scratch.kfull.resize(self.stiffness[0].len(), 0.0);
-        m.fill(0.0);
-        for ((f, kc), mc) in fill.iter().zip(&self.stiffness).zip(&self.mass) {
-            let w = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
-            scratch
-                .kfull
-                .iter_mut()
-                .zip(kc)
-                .for_each(|(a, b)| *a += w * b);
-            m.iter_mut().zip(mc).for_each(|(a, b)| *a += w * b);
+    /// Buffers for [`CutElement::matrices_batch`].
+    pub fn scratch(&self) -> CutScratch {
+        let ndof = 3 * self.kind.nodes();
+        CutScratch {
+            weights: Mat::zeros(self.stiffness.ncols(), CUT_BATCH),
+            kfull: Mat::zeros(self.stiffness.nrows(), CUT_BATCH),
+            mass: Mat::zeros(self.mass.nrows(), CUT_BATCH),
+            column: vec![0.0; self.kfull_len],
+            k: vec![0.0; ndof * ndof],
+            condense: Vec::new(),
         }
-        if self.kind == ElementKind::Hex8Incompatible {
-            self.taylor_correction(fill, &mut scratch.kfull);
-        }
-        condense(self.kind, &scratch.kfull, k, &mut scratch.condense);
     }
 
-    /// Makes the incompatible modes' strains average to zero over the filled part of the cell
-    /// (Taylor, Beresford and Wilson 1976): `B_b -> B_b - G`, `G = int_f B_b dV / V_f`. On a
-    /// full cube the bubbles' strains already average to zero (`G = 0`); on a cut cell they do
-    /// not, and the uncorrected element fails the constant-strain patch test and locks.
-    ///
-    /// With `S_u = int_f B_u dV` and `int_f B_b dV = V_f G`:
-    /// `K_ub -= S_u^T D G`, `K_bu -= G^T D S_u`, `K_bb -= V_f G^T D G`.
-    fn taylor_correction(&self, fill: &[f64], kfull: &mut [f64]) {
-        let nb = self.bubble_strain[0].len();
-        let nu_ = self.nodal_strain[0].len();
-        let full = nu_ + nb;
-        let mut volume = 0.0;
-        let mut g = [[0.0; 6]; 9];
-        let mut su = vec![[0.0; 6]; nu_];
-        for (c, f) in fill.iter().enumerate() {
-            let w = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
-            volume += w * self.subcell_volume;
-            for (gi, b) in g.iter_mut().zip(&self.bubble_strain[c]) {
-                gi.iter_mut().zip(b).for_each(|(x, y)| *x += w * y);
-            }
-            for (si, b) in su.iter_mut().zip(&self.nodal_strain[c]) {
-                si.iter_mut().zip(b).for_each(|(x, y)| *x += w * y);
+    /// The element matrices of up to [`CUT_BATCH`] partial voxels whose sub-cells (x fastest)
+    /// are filled to the fractions `fills[j]` (each in `[0, 1]`): calls `each(j, k, m)` with
+    /// `3 n` square row-major matrices, like [`super::UnitElement`]'s.
+    pub fn matrices_batch(
+        &self,
+        fills: &[&[f64]],
+        scratch: &mut CutScratch,
+        mut each: impl FnMut(usize, &[f64], &[f64]),
+    ) {
+        let count = fills.len();
+        assert!(count <= CUT_BATCH, "at most CUT_BATCH elements per batch");
+        let subcells = self.stiffness.ncols();
+        for (j, fill) in fills.iter().enumerate() {
+            assert_eq!(fill.len(), subcells, "one fraction per sub-cell");
+            for (c, f) in fill.iter().enumerate() {
+                scratch.weights[(c, j)] = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
             }
         }
-        g.iter_mut().flatten().for_each(|x| *x /= volume);
-        let d = &self.elasticity;
-        let dot_d = |a: &[f64; 6], b: &[f64; 6]| -> f64 {
-            (0..6)
-                .map(|r| a[r] * (0..6).map(|s| d[r][s] * b[s]).sum::<f64>())
-                .sum()
-        };
-        for (j, gj) in g.iter().enumerate() {
-            for (i, si) in su.iter().enumerate() {
-                let corr = dot_d(si, gj);
-                kfull[i * full + nu_ + j] -= corr;
-                kfull[(nu_ + j) * full + i] -= corr;
+        let weights = scratch.weights.as_ref().subcols(0, count);
+        for (table, out) in [
+            (&self.stiffness, &mut scratch.kfull),
+            (&self.mass, &mut scratch.mass),
+        ] {
+            matmul(
+                out.as_mut().subcols_mut(0, count),
+                Accum::Replace,
+                table.as_ref(),
+                weights,
+                1.0,
+                Par::Seq,
+            );
+        }
+        for j in 0..count {
+            let (kfull, sums) = scratch.kfull.col_as_slice(j).split_at(self.kfull_len);
+            scratch.column.copy_from_slice(kfull);
+            if self.kind == ElementKind::Hex8Incompatible {
+                taylor_correction(&self.elasticity, sums, &mut scratch.column);
             }
-            for (i, gi) in g.iter().enumerate() {
-                kfull[(nu_ + i) * full + nu_ + j] -= volume * dot_d(gi, gj);
-            }
+            condense(
+                self.kind,
+                &scratch.column,
+                &mut scratch.k,
+                &mut scratch.condense,
+            );
+            each(j, &scratch.k, scratch.mass.col_as_slice(j));
+        }
+    }
+
+    /// The element matrices of one partial voxel (see [`CutElement::matrices_batch`]).
+    pub fn matrices(&self, fill: &[f64], k: &mut [f64], m: &mut [f64], scratch: &mut CutScratch) {
+        self.matrices_batch(&[fill], scratch, |_, ke, me| {
+            k.copy_from_slice(ke);
+            m.copy_from_slice(me);
+        });
+    }
+}
+
+/// Makes the incompatible modes' strains average to zero over the filled part of the cell
+/// (Taylor, Beresford and Wilson 1976): `B_b -> B_b - G`, `G = int_f B_b dV / V_f`. On a full
+/// cube the bubbles' strains already average to zero (`G = 0`); on a cut cell they do not, and
+/// the uncorrected element fails the constant-strain patch test and locks.
+///
+/// `sums` holds the fill-weighted `int_f B_b dV` (9 x 6), `S_u = int_f B_u dV` (24 x 6) and
+/// `V_f`; with `int_f B_b dV = V_f G`:
+/// `K_ub -= S_u^T D G`, `K_bu -= G^T D S_u`, `K_bb -= V_f G^T D G`.
+fn taylor_correction(d: &[[f64; 6]; 6], sums: &[f64], kfull: &mut [f64]) {
+    const NB: usize = 9;
+    const NU: usize = 24;
+    let full = NU + NB;
+    let volume = sums[6 * (NB + NU)];
+    let g: [[f64; 6]; NB] =
+        std::array::from_fn(|j| std::array::from_fn(|r| sums[6 * j + r] / volume));
+    let su = |i: usize| &sums[6 * (NB + i)..6 * (NB + i + 1)];
+    // D G_j once per bubble DOF; then every correction is a 6-term dot product.
+    let dg: [[f64; 6]; NB] =
+        g.map(|gj| std::array::from_fn(|r| (0..6).map(|s| d[r][s] * gj[s]).sum()));
+    let dot = |a: &[f64], b: &[f64; 6]| -> f64 { (0..6).map(|r| a[r] * b[r]).sum() };
+    for (j, dgj) in dg.iter().enumerate() {
+        for i in 0..NU {
+            let corr = dot(su(i), dgj);
+            kfull[i * full + NU + j] -= corr;
+            kfull[(NU + j) * full + i] -= corr;
+        }
+        for (i, gi) in g.iter().enumerate() {
+            kfull[(NU + i) * full + NU + j] -= volume * dot(gi, dgj);
         }
     }
 }
@@ -195,7 +259,7 @@ mod tests {
                 let cut = CutElement::new(kind, 0.3, per_axis);
                 let fill = vec![1.0; per_axis.pow(3)];
                 let (mut k, mut m) = (vec![0.0; n * n], vec![0.0; n * n]);
-                cut.matrices(&fill, &mut k, &mut m, &mut CutScratch::default());
+                cut.matrices(&fill, &mut k, &mut m, &mut cut.scratch());
                 let dk: Vec<f64> = k.iter().zip(&unit.stiffness).map(|(a, b)| a - b).collect();
                 let dm: Vec<f64> = m.iter().zip(&unit.mass).map(|(a, b)| a - b).collect();
                 assert!(max_abs(&dk) < 1e-13 * max_abs(&unit.stiffness), "{kind:?}");
@@ -214,7 +278,7 @@ mod tests {
             let cut = CutElement::new(kind, 0.3, 2);
             let fill: Vec<f64> = (0..8).map(|c| if c < 4 { 1.0 } else { 0.0 }).collect();
             let (mut k, mut m) = (vec![0.0; n * n], vec![0.0; n * n]);
-            cut.matrices(&fill, &mut k, &mut m, &mut CutScratch::default());
+            cut.matrices(&fill, &mut k, &mut m, &mut cut.scratch());
             let ones: Vec<f64> = (0..n).map(|i| (i % 3 == 0) as u8 as f64).collect();
             let zs: Vec<f64> = (0..n)
                 .map(|i| {

@@ -177,21 +177,32 @@ fn spd_solve(a: &mut [f64], n: usize, b: &mut [f64], m: usize) {
             a[i * n + j] = s / l;
         }
     }
-    for c in 0..m {
-        for i in 0..n {
-            let mut s = b[i * m + c];
-            for k in 0..i {
-                s -= a[i * n + k] * b[k * m + c];
-            }
-            b[i * m + c] = s / a[i * n + i];
+    // Forward and back substitution on every right-hand side at once: row operations over
+    // the `m` columns (contiguous, vectorisable), each entry updated in the same order as a
+    // column-by-column substitution.
+    for i in 0..n {
+        let (done, rest) = b.split_at_mut(i * m);
+        let row = &mut rest[..m];
+        for k in 0..i {
+            let l = a[i * n + k];
+            row.iter_mut()
+                .zip(&done[k * m..(k + 1) * m])
+                .for_each(|(r, x)| *r -= l * x);
         }
-        for i in (0..n).rev() {
-            let mut s = b[i * m + c];
-            for k in i + 1..n {
-                s -= a[k * n + i] * b[k * m + c];
-            }
-            b[i * m + c] = s / a[i * n + i];
+        let d = a[i * n + i];
+        row.iter_mut().for_each(|r| *r /= d);
+    }
+    for i in (0..n).rev() {
+        let (head, tail) = b.split_at_mut((i + 1) * m);
+        let row = &mut head[i * m..];
+        for k in i + 1..n {
+            let l = a[k * n + i];
+            row.iter_mut()
+                .zip(&tail[(k - i - 1) * m..(k - i) * m])
+                .for_each(|(r, x)| *r -= l * x);
         }
+        let d = a[i * n + i];
+        row.iter_mut().for_each(|r| *r /= d);
     }
 }
 
@@ -311,10 +322,19 @@ pub(crate) fn condense(kind: ElementKind, kfull: &[f64], k: &mut [f64], scratch:
         }
         x.copy_from_slice(kau);
         spd_solve(kaa, na, x, nu_);
+        // K = Kuu - Kau^T X, a row at a time: corr_ij accumulates over s in order.
+        let mut corr = [0.0f64; 3 * 27];
         for i in 0..nu_ {
+            let corr = &mut corr[..nu_];
+            corr.fill(0.0);
+            for s in 0..na {
+                let a = kau[s * nu_ + i];
+                corr.iter_mut()
+                    .zip(&x[s * nu_..(s + 1) * nu_])
+                    .for_each(|(c, x)| *c += a * x);
+            }
             for j in 0..nu_ {
-                let corr: f64 = (0..na).map(|s| kau[s * nu_ + i] * x[s * nu_ + j]).sum();
-                k[i * ndof + j] = kfull[i * full + j] - corr;
+                k[i * ndof + j] = kfull[i * full + j] - corr[j];
             }
         }
     } else {
