@@ -256,6 +256,20 @@ fn presets_save_and_load_through_files() {
     let e = Preset::from_toml("name = 3", "x.toml").unwrap_err();
     assert!(e.contains("x.toml"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
+    // A sculpted curved object keeps its partial voxels through a preset file; a file
+    // without `fill` (saved before partial voxels) loads as the binary object it was.
+    let bowl = Sculpt::default();
+    assert!(!bowl.fill.is_empty());
+    let p = Preset::with_object("bowl", &bowl);
+    let back = Preset::from_toml(&p.to_toml(), "bowl.toml").unwrap();
+    assert_eq!(back.sculpt().unwrap(), bowl);
+    let old = p.to_toml().replace(
+        &format!("fill = \"{}\"", p.object.as_ref().unwrap().fill),
+        "",
+    );
+    assert!(!old.contains("fill"));
+    let binary = Preset::from_toml(&old, "old.toml").unwrap().sculpt().unwrap();
+    assert!(binary.fill.is_empty() && binary.bits == bowl.bits);
 }
 
 /// A stand-in approximate answer (the exact modes, labelled approximate) and a slow exact one,
