@@ -7,7 +7,7 @@
 //! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs.
 //!
 //! `cargo bench --bench partial_voxels` (all shapes; hex27 only up to 80k DOFs);
-//! `-- --quick` for the two bowls; `-- --assembly` repeats the 32-voxel bowl's hex8i assembly
+//! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly` repeats the 32-voxel bowl's hex8i assembly
 //! (for a profiler).
 
 #[path = "../tests/common/smooth.rs"]
@@ -39,6 +39,7 @@ fn median_assembly_ms(grid: &VoxelGrid, kind: ElementKind) -> (f64, usize) {
 fn main() {
     faer::set_global_parallelism(faer::Par::Seq);
     let quick = std::env::args().any(|a| a == "--quick");
+    let only_hex8i = std::env::args().any(|a| a == "--hex8i");
     if std::env::args().any(|a| a == "--assembly") {
         // Assembly only, repeated (for a profiler): the 32-voxel bowl, partial voxels, hex8i.
         let ShapeSpec::Primitive { shape, .. } = "bowl:d=32,wall=2".parse::<ShapeSpec>().unwrap()
@@ -73,6 +74,9 @@ fn main() {
             ("partial", shape.rasterize(1.0, 1.0).expect("raster")),
         ] {
             for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27] {
+                if only_hex8i && kind == ElementKind::Hex27 {
+                    continue;
+                }
                 let (ms, dofs) = median_assembly_ms(&grid, kind);
                 if kind == ElementKind::Hex27 && dofs > MAX_HEX27_DOFS {
                     continue;

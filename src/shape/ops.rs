@@ -77,6 +77,7 @@ pub fn difference(
 
 /// Keeps only solid voxels within `wall_voxels` face steps of the outside (an empty voxel or
 /// the grid boundary): a closed shell of that wall thickness. `wall_voxels = 0` keeps nothing.
+/// Partial voxels count as whole steps and keep their fill.
 pub fn hollow(grid: &VoxelGrid, wall_voxels: usize) -> VoxelGrid {
     let [nx, ny, nz] = grid.dims();
     let mut dist = vec![usize::MAX; grid.occupancy().len()];
@@ -110,13 +111,19 @@ pub fn hollow(grid: &VoxelGrid, wall_voxels: usize) -> VoxelGrid {
             }
         }
     }
-    let occ = grid
-        .occupancy()
-        .iter()
-        .zip(&dist)
-        .map(|(&o, &d)| o && d <= wall_voxels)
-        .collect();
-    VoxelGrid::from_occupancy(grid.dims(), grid.voxel_size_m(), occ).expect("same dims")
+    // The voxels that stay keep their fill (a smooth outer surface stays smooth).
+    let mut out = grid.clone();
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                let i = grid.index(x, y, z);
+                if grid.occupancy()[i] && dist[i] > wall_voxels {
+                    out.set(x, y, z, false);
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Labels face-connected components of the solid voxels: `(labels, count)`, with label
@@ -162,6 +169,19 @@ mod tests {
         // A 6^3 cube hollowed to 1 voxel keeps 6^3 - 4^3 voxels; to 3 it stays solid.
         assert_eq!(hollow(&cube(6), 1).count(), 216 - 64);
         assert_eq!(hollow(&cube(6), 3).count(), 216);
+    }
+
+    #[test]
+    fn hollowing_a_smooth_sphere_keeps_its_surface_fill() {
+        // Every partial voxel lies on the outside, so all of them stay, with their fill.
+        let sphere = crate::shape::primitives::Primitive::Sphere { diameter: 12.0 }
+            .rasterize(1.0, 1.0)
+            .unwrap();
+        let shell = hollow(&sphere, 2);
+        assert!(shell.count() < sphere.count());
+        assert!(sphere
+            .partial_voxels()
+            .all(|(i, f)| shell.subcell_fill(i) == Some(f)));
     }
 
     #[test]
