@@ -42,6 +42,29 @@ pub enum Command {
     Chart(chart::ChartArgs),
     /// Print the analytic Euler-Bernoulli steel bar's modes as JSON (a template for --modes files).
     DemoModes,
+    /// Generate the neural predictor's training data: varied objects in a 32^3 box, labelled
+    /// by FEM in the band representation (resumable: finished records are kept).
+    Dataset(DatasetArgs),
+}
+
+/// Options of `modalforge dataset`.
+#[derive(clap::Args, Debug)]
+pub struct DatasetArgs {
+    /// Output directory (records go to OUT/train/ and OUT/heldout/).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Training objects.
+    #[arg(long, value_name = "N", default_value_t = 5000)]
+    pub count: usize,
+    /// Held-out objects (shape families training never sees).
+    #[arg(long, value_name = "N", default_value_t = 500)]
+    pub held_out: usize,
+    /// Random seed: the same seed makes the same dataset.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// Threads [default: every core].
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
 }
 
 /// Options of `modalforge modes`.
@@ -157,6 +180,32 @@ pub enum CliError {
     Object(#[from] object::ObjectError),
 }
 
+fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return Err(CliError::Option(
+            "--threads 0: use at least one thread".into(),
+        ));
+    }
+    let summary = crate::predictor::dataset::generate(
+        &args.out,
+        args.count,
+        args.held_out,
+        args.seed,
+        threads,
+    )
+    .map_err(|e| CliError::Option(format!("cannot write {}: {e}", args.out.display())))?;
+    Ok(format!(
+        "{}: {} written, {} kept from an earlier run, {} failed",
+        args.out.display(),
+        summary.written,
+        summary.kept,
+        summary.failed
+    ))
+}
+
 /// What `render` did, for the summary line or `--json`.
 #[derive(Debug, serde::Serialize)]
 pub struct RenderSummary {
@@ -186,6 +235,7 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
         Command::DemoModes => Ok(crate::demo::steel_bar().to_json()),
         Command::Materials => Ok(materials_table()),
         Command::Chart(args) => chart::chart_command(&args),
+        Command::Dataset(args) => dataset_command(&args),
         Command::Modes(args) => modes_command(&args),
         Command::Render(args) => {
             let json = args.json;

@@ -14,5 +14,6 @@ pub mod fem;
 pub mod material;
 pub mod modal;
 pub mod modes;
+pub mod predictor;
 pub mod shape;
 pub mod synth;

@@ -99,7 +99,8 @@ fn alignment_follows_a_moved_origin() {
     let d = grid.dims();
     let mut moved = VoxelGrid::new([d[0] + 1, d[1], d[2] + 1], 1.0).unwrap();
     for [x, y, z] in grid.solid_voxels() {
-        moved.set(x + 1, y, z + 1, true);
+        let fill = grid.fill_at(x as isize, y as isize, z as isize);
+        moved.set_fill(x + 1, y, z + 1, fill);
     }
     let model = FemModel::assemble(&moved, ElementKind::Hex8Incompatible, NU).unwrap();
     assert_eq!(warm::align(&b.model, &model), ([-1, 0, -1], grid.count()));
@@ -120,7 +121,7 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
         if at[2] >= d[2] {
             let mut bigger = VoxelGrid::new([d[0], d[1], d[2] + 1], 1.0).unwrap();
             for [a, b, c] in grid.solid_voxels() {
-                bigger.set(a, b, c, true);
+                bigger.set_fill(a, b, c, grid.fill_at(a as isize, b as isize, c as isize));
             }
             grid = bigger;
         }

@@ -51,8 +51,12 @@ fn combine(
                     a.get(px as isize, py as isize, pz as isize),
                     b.occupancy()[b.index(x, y, z)],
                 );
-                // Voxels the operation leaves as they were keep their partial fill.
-                if v != a.get(px as isize, py as isize, pz as isize) {
+                // Voxels the operation leaves as they were keep their partial fill; a voxel
+                // the second grid fills takes its fill.
+                let was = a.get(px as isize, py as isize, pz as isize);
+                if v && !was {
+                    out.set_fill(px, py, pz, b.fill_at(x as isize, y as isize, z as isize));
+                } else if v != was {
                     out.set(px, py, pz, v);
                 }
             }
