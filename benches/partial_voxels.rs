@@ -7,8 +7,8 @@
 //! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs.
 //!
 //! `cargo bench --bench partial_voxels` (all shapes; hex27 only up to 80k DOFs);
-//! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly` repeats the 32-voxel bowl's hex8i assembly
-//! (for a profiler).
+//! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly` repeats the
+//! 32-voxel bowl's hex8i assembly (for a profiler).
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;

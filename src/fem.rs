@@ -3,11 +3,12 @@
 //! Where it sits: between the shape ([`crate::shape`]) and the eigensolvers ([`crate::eigen`]).
 //! [`FemModel::assemble`] numbers the nodes of the occupied voxels, and sums the single unit-cube
 //! element matrix ([`element`]) over all full voxels, and a cut element ([`cut`], the finite
-//! cell method) over the partial ones, into node-blocked sparse `K` and `M` ([`sparse`]). The model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge
-//! `h = 1`): physical matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical
-//! object are `E / (rho h^2)` times the reference ones and its mass-normalised modes are
-//! `(rho h^3)^(-1/2)` times the reference ones (the exact form of Deep-Modal's scaling laws,
-//! seed 000 eq. 10-12; [`crate::modal`] applies them).
+//! cell method) over the partial ones, into node-blocked sparse `K` and `M` ([`sparse`]). The
+//! model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge `h = 1`): physical
+//! matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical object are
+//! `E / (rho h^2)` times the reference ones and its mass-normalised modes are `(rho h^3)^(-1/2)`
+//! times the reference ones (the exact form of Deep-Modal's scaling laws, seed 000 eq. 10-12;
+//! [`crate::modal`] applies them).
 
 pub mod cut;
 pub mod element;

@@ -93,7 +93,8 @@ fn plate_32x32x2_lowest_20_within_2_percent_default_and_0_2_percent_quadratic() 
 }
 
 /// The staircase (`--staircase`, today's binary voxels: the geometry these references solve;
-/// the smooth bowl is `tests/partial_voxels.rs`). NOT the bound: it asks for 2 %, hex27 on the 32^3 voxels measures 1.2-2.8 % above
+/// the smooth bowl is `tests/partial_voxels.rs`). NOT the bound: it asks for 2 %,
+/// hex27 on the 32^3 voxels measures 1.2-2.8 % above
 /// the split-2 reference (worst 2.77 %, first mode). The plate shows the element itself is
 /// accurate (0.08 % with 2 elements across); the bowl's excess comes from the staircase's
 /// re-entrant corners, whose stress singularities converge slowly under refinement. The stored

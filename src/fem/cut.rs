@@ -4,10 +4,10 @@
 //! Where it sits: [`super::FemModel::assemble`] uses the unit element ([`super::UnitElement`])
 //! for every full voxel, and this for every partial one ([`crate::shape::SubFill`]). The unit
 //! cube is split into `s^3` sub-cells; the uncondensed stiffness and the mass of each sub-cell
-//! are integrated once ([`super::element::integrate_box`]), and a partial element's matrices are
+//! are integrated once (`element::integrate_box`), and a partial element's matrices are
 //! the fill-weighted sums `K_e = sum_c max(f_c, alpha) K_c`, `M_e = sum_c max(f_c, alpha) M_c`
-//! — exact for a fill that is constant on each sub-cell — followed by the static condensation of
-//! the incompatible modes for hex8i. `alpha` ([`EMPTY_SUBCELL_FLOOR`]) keeps the bubble block
+//! (exact for a fill that is constant on each sub-cell), followed by the static condensation
+//! of the incompatible modes for hex8i. `alpha` ([`EMPTY_SUBCELL_FLOOR`]) keeps the bubble block
 //! positive definite when sub-cells are empty, as the finite cell method's `alpha` does.
 
 use super::element::{condense, elasticity, integrate_box, BoxIntegrals, ElementKind};

@@ -294,7 +294,8 @@ mod tests {
     #[test]
     fn a_fem_basis_encodes_in_tune_and_decodes_to_its_strikes() {
         // Truth: the FEM basis itself. A 32x8x2 bar's modes land in the bands at the
-        // reference (its first bending mode near 1.3 kHz); every band frequency is one of its modes, exactly (f32 log10: 1e-6);
+        // reference (its first bending mode near 1.3 kHz); every band frequency is one of its
+        // modes, exactly (f32 log10: 1e-6);
         // a strike's loudest band decodes at gain 1 and its masks are the bands whose
         // strongest mode at that strike is within 60 dB of the loudest, recomputed here.
         let grid = VoxelGrid::from_fn([32, 8, 2], 1.0, |_, _, _| true).unwrap();

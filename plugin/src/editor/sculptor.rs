@@ -102,8 +102,9 @@ impl Sculptor {
     }
 
     /// Adds (or with `solid = false` removes) a ball of `brush_radius` voxels at `cell`, and its
-    /// mirror images; one undo step. Painted voxels become full (or empty), partial ones too. Cells outside the box are skipped. Removing the last voxel
-    /// is refused (an empty object cannot be solved). Returns whether anything changed.
+    /// mirror images; one undo step. Painted voxels become full (or empty), partial ones too.
+    /// Cells outside the box are skipped. Removing the last voxel is refused (an empty object
+    /// cannot be solved). Returns whether anything changed.
     pub fn paint(&mut self, cell: [i64; 3], solid: bool) -> bool {
         let before = self.cells.clone();
         let r = self.brush_radius as i64;
