@@ -46,7 +46,8 @@ def render(p, note, seconds=2.0):
 
 
 def peaks(x, count):
-    """Frequencies of the `count` strongest spectral peaks (parabolic interpolation).
+    """Frequencies of the `count` strongest spectral peaks (parabolic interpolation), each the
+    strongest within 3 % of itself.
 
     The window is the falling half of a Hann window: flat at the strike (a full Hann window
     would shape a fast-decaying wood note into t^2 e^(-dt) and split its peaks), smooth at the
@@ -60,10 +61,17 @@ def peaks(x, count):
            if db[i] > db[i - 1] and db[i] >= db[i + 1] and db[i] > top - 50]
     idx.sort(key=lambda i: -db[i])
     out = []
-    for i in idx[:count]:
+    for i in idx:
         a, b, c = db[i - 1], db[i], db[i + 1]
         off = 0.5 * (a - c) / (a - 2 * b + c)
-        out.append((i + off) * RATE / n)
+        f = (i + off) * RATE / n
+        # Only the strongest maximum within 3 %: two overlapping damped modes of a
+        # near-degenerate pair (a bowl's) interfere, and with opposite phases their sum has a
+        # weaker shoulder maximum just outside the pair that is no mode.
+        if all(abs(f - g) > 0.03 * g for g in out):
+            out.append(f)
+        if len(out) == count:
+            break
     return np.array(out)
 
 
