@@ -115,6 +115,8 @@ fn surface_normal(grid: &VoxelGrid, v: [usize; 3]) -> Option<[f64; 3]> {
 fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
     let mut out = Vec::new();
     for v in grid.solid_voxels() {
+        // The fill's normal, once per voxel, for whichever of its faces are exposed.
+        let mut smooth: Option<Option<[f64; 3]>> = None;
         for axis in 0..3 {
             for side in [-1isize, 1] {
                 let mut nb = v.map(|c| c as isize);
@@ -123,9 +125,8 @@ fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
                     let mut normal = [0.0; 3];
                     normal[axis] = -(side as f64);
                     // The fill's normal, unless it points out of this face (a thin feature).
-                    if let Some(n) =
-                        surface_normal(grid, v).filter(|n| n[axis] * normal[axis] > 0.0)
-                    {
+                    let fill_normal = *smooth.get_or_insert_with(|| surface_normal(grid, v));
+                    if let Some(n) = fill_normal.filter(|n| n[axis] * normal[axis] > 0.0) {
                         normal = n;
                     }
                     out.push(Face {
