@@ -1,8 +1,12 @@
 //! ModalForge: a physically based impact-sound instrument.
 //!
-//! Data flow (see ARCHITECTURE.md): a mode source ([`demo`] today; FEM and a neural predictor
-//! later) produces a [`modes::ModeSet`]; [`modes::ModeSet::playable`] culls it for a sample rate;
-//! the banks in [`synth`] play it, struck by an [`synth::Excitation`] or driven by a force signal.
+//! Data flow (see ARCHITECTURE.md): a shape ([`shape`]: voxels, partial where a curved surface
+//! cuts them) is assembled by [`fem`] and solved by [`eigen`] into a [`modal::ModeBasis`]; that,
+//! a mode file or the analytic [`demo`] bar becomes a [`modes::ModeSet`];
+//! [`modes::ModeSet::playable`] culls it for a sample rate; the banks in [`synth`] play it,
+//! struck by an [`synth::Excitation`] or driven by a force signal, offline (the [`cli`]) or in
+//! real time ([`engine`], which the plugin and the standalone app run). [`predictor`] holds the
+//! neural predictor's data representation and training set (its network is not built yet).
 #![deny(missing_docs)]
 
 pub mod buffer;

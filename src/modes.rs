@@ -1,8 +1,8 @@
 //! The mode data model: what the synthesis banks play.
 //!
-//! Where it sits: the output of every mode source (today the analytic demo in [`crate::demo`] and
-//! JSON files; later the FEM solver and the neural predictor) and the input of the banks in
-//! [`crate::synth`]. A mode `i` struck at `t = 0` rings as
+//! Where it sits: the output of every mode source (the FEM solution voiced by
+//! [`crate::modal::ModeBasis`], JSON files, the analytic demo in [`crate::demo`]) and the input
+//! of the banks in [`crate::synth`]. A mode `i` struck at `t = 0` rings as
 //! `q_i(t) = g_i e^(-d_i t) sin(2 pi f_i t)` (Deep-Modal, seed 000 eq. 3 and 13, with the initial
 //! phase zero because the object starts at rest).
 //!

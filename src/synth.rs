@@ -1,8 +1,8 @@
 //! Real-time modal synthesis: the banks that turn modes into sound, and their excitations.
 //!
 //! Where it sits: after [`crate::modes`] (which culls a [`ModeSet`](crate::modes::ModeSet) into
-//! [`PlayableModes`](crate::modes::PlayableModes)); before the audio output, the WAV writer of
-//! the CLI, and later the real-time engine and the plugin.
+//! [`PlayableModes`](crate::modes::PlayableModes)); before the audio output: the WAV writer of
+//! the CLI, and the real-time engine ([`crate::engine`]) that the plugin and the app run.
 //!
 //! - [`OscillatorBank`]: modes as free damped sines, struck; the fast path (f32, SIMD, exact
 //!   re-anchoring every 64 samples so it never drifts).
