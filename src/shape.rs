@@ -42,6 +42,26 @@ pub struct VoxelGrid {
     partial: BTreeMap<usize, SubFill>,
 }
 
+/// Bytes per partial voxel in [`VoxelGrid::partial_records`]: its linear index (`u32`, little
+/// endian) and its [`fill::SUBCELLS`] sub-cell fills ([`SubFill`]).
+pub const PARTIAL_RECORD_BYTES: usize = 4 + fill::SUBCELLS;
+
+/// Why stored partial-voxel records ([`VoxelGrid::set_partial_records`]) do not fit a grid.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PartialRecordError {
+    /// The bytes are not whole records.
+    #[error("partial-voxel fill has {0} bytes, not a multiple of {PARTIAL_RECORD_BYTES}")]
+    Length(usize),
+    /// A record names a voxel that is not occupied.
+    #[error("partial voxel {index} is not an occupied voxel of {dims:?}")]
+    NotOccupied {
+        /// The record's linear index.
+        index: usize,
+        /// The grid's dimensions.
+        dims: [usize; 3],
+    },
+}
+
 /// What is wrong with a voxel grid.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ShapeError {
@@ -243,6 +263,48 @@ impl VoxelGrid {
     /// The partial voxels by linear index (empty for a binary grid).
     pub fn partial_voxels(&self) -> impl Iterator<Item = (usize, &SubFill)> {
         self.partial.iter().map(|(&i, f)| (i, f))
+    }
+
+    /// The partial voxels as bytes, [`PARTIAL_RECORD_BYTES`] per voxel in index order (empty
+    /// for a binary grid): how the plugin state and the predictor's records store them.
+    pub fn partial_records(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.partial.len() * PARTIAL_RECORD_BYTES);
+        for (&i, f) in &self.partial {
+            out.extend_from_slice(&(i as u32).to_le_bytes());
+            out.extend_from_slice(&f.0);
+        }
+        out
+    }
+
+    /// Makes the voxels named by [`VoxelGrid::partial_records`] bytes partial, with their fill;
+    /// refuses (changing nothing) bytes that are not whole records or name an empty voxel.
+    pub fn set_partial_records(&mut self, bytes: &[u8]) -> Result<(), PartialRecordError> {
+        if !bytes.len().is_multiple_of(PARTIAL_RECORD_BYTES) {
+            return Err(PartialRecordError::Length(bytes.len()));
+        }
+        let records = bytes.chunks_exact(PARTIAL_RECORD_BYTES).map(|r| {
+            let index = u32::from_le_bytes(r[..4].try_into().expect("4 bytes")) as usize;
+            (index, SubFill(r[4..].try_into().expect("SUBCELLS bytes")))
+        });
+        if let Some((index, _)) = records
+            .clone()
+            .find(|&(i, _)| !self.occupied.get(i).copied().unwrap_or(false))
+        {
+            return Err(PartialRecordError::NotOccupied {
+                index,
+                dims: self.dims,
+            });
+        }
+        let [nx, ny, _] = self.dims;
+        for (i, sub) in records {
+            self.set_fill(
+                i % nx,
+                (i / nx) % ny,
+                i / (nx * ny),
+                VoxelFill::Partial(sub),
+            );
+        }
+        Ok(())
     }
 
     /// Whether every occupied voxel is full.

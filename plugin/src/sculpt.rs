@@ -2,9 +2,8 @@
 //! packed occupancy bits and the partial voxels' sub-cell fill, serialised with the DAW
 //! project. States saved before partial voxels existed have no `fill` and load as binary.
 
-use modalforge::shape::fill::SUBCELLS;
 use modalforge::shape::spec::ShapeSpec;
-use modalforge::shape::{SubFill, VoxelFill, VoxelGrid};
+use modalforge::shape::VoxelGrid;
 use serde::{Deserialize, Serialize};
 
 /// Largest grid side the editor allows (issue #4: resolution up to 32^3).
@@ -17,14 +16,11 @@ pub struct Sculpt {
     pub dims: [usize; 3],
     /// Occupancy, 8 voxels per byte, x fastest, then y, then z.
     pub bits: Vec<u8>,
-    /// The partial voxels: per voxel its linear index (u32, little endian) and its
-    /// [`SUBCELLS`] sub-cell fills ([`SubFill`]); empty for a binary object.
+    /// The partial voxels as [`VoxelGrid::partial_records`] (per voxel its linear index and
+    /// its sub-cell fills); empty for a binary object.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub fill: Vec<u8>,
 }
-
-/// Bytes per partial voxel in [`Sculpt::fill`].
-const FILL_RECORD: usize = 4 + SUBCELLS;
 
 impl Sculpt {
     /// From a grid (its voxel size is not kept: the Size parameter sets it).
@@ -36,11 +32,7 @@ impl Sculpt {
                 bits[i / 8] |= 1 << (i % 8);
             }
         }
-        let mut fill = Vec::new();
-        for (i, f) in grid.partial_voxels() {
-            fill.extend_from_slice(&(i as u32).to_le_bytes());
-            fill.extend_from_slice(&f.0);
-        }
+        let fill = grid.partial_records();
         Self { dims, bits, fill }
     }
 
@@ -59,29 +51,8 @@ impl Sculpt {
             .collect();
         let mut grid =
             VoxelGrid::from_occupancy(self.dims, 1.0, occupancy).map_err(|e| e.to_string())?;
-        if !self.fill.len().is_multiple_of(FILL_RECORD) {
-            return Err(format!(
-                "stored object's partial-voxel fill has {} bytes, not a multiple of {FILL_RECORD}",
-                self.fill.len()
-            ));
-        }
-        for record in self.fill.chunks_exact(FILL_RECORD) {
-            let i = u32::from_le_bytes(record[..4].try_into().expect("4 bytes")) as usize;
-            if !grid.occupancy().get(i).copied().unwrap_or(false) {
-                return Err(format!(
-                    "stored object's partial voxel {i} is not an occupied voxel of {:?}",
-                    self.dims
-                ));
-            }
-            let sub = SubFill(record[4..].try_into().expect("SUBCELLS bytes"));
-            let [nx, ny, _] = self.dims;
-            grid.set_fill(
-                i % nx,
-                (i / nx) % ny,
-                i / (nx * ny),
-                VoxelFill::Partial(sub),
-            );
-        }
+        grid.set_partial_records(&self.fill)
+            .map_err(|e| format!("stored object's {e}"))?;
         Ok(grid)
     }
 

@@ -15,9 +15,8 @@ use super::bands::{self, BandEncoding, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_
 use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 use crate::fem::ElementKind;
 use crate::modal::ModeBasis;
-use crate::shape::fill::SUBCELLS;
 use crate::shape::primitives::Primitive;
-use crate::shape::{ops, SubFill, VoxelFill, VoxelGrid};
+use crate::shape::{ops, VoxelGrid, PARTIAL_RECORD_BYTES};
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -391,12 +390,9 @@ impl Record {
         out.push(self.family.id());
         out.extend(self.grid.dims().map(|d| d as u8));
         push_bits(&mut out, self.grid.occupancy());
-        let partial: Vec<(usize, &SubFill)> = self.grid.partial_voxels().collect();
-        out.extend((partial.len() as u32).to_le_bytes());
-        for (i, f) in partial {
-            out.extend((i as u32).to_le_bytes());
-            out.extend(f.0);
-        }
+        let partial = self.grid.partial_records();
+        out.extend(((partial.len() / PARTIAL_RECORD_BYTES) as u32).to_le_bytes());
+        out.extend(partial);
         push_bits(&mut out, &self.labels.struck);
         push_bits(&mut out, &self.labels.mask);
         for (m, a) in self.labels.mask.iter().zip(&self.labels.log_amplitude) {
@@ -432,19 +428,11 @@ impl Record {
         let mut grid =
             VoxelGrid::from_occupancy(dims, 1.0, occupancy).map_err(|_| RecordError("grid"))?;
         let partial = u32::from_le_bytes(take(4)?.try_into().expect("4")) as usize;
-        for _ in 0..partial.min(n) {
-            let i = u32::from_le_bytes(take(4)?.try_into().expect("4")) as usize;
-            let f = SubFill(take(SUBCELLS)?.try_into().expect("SUBCELLS"));
-            if i >= n || !grid.occupancy()[i] {
-                return Err(RecordError("partial voxel outside the object"));
-            }
-            let (x, y, z) = (
-                i % dims[0],
-                (i / dims[0]) % dims[1],
-                i / (dims[0] * dims[1]),
-            );
-            grid.set_fill(x, y, z, VoxelFill::Partial(f));
+        if partial > n {
+            return Err(RecordError("more partial voxels than voxels"));
         }
+        grid.set_partial_records(take(partial * PARTIAL_RECORD_BYTES)?)
+            .map_err(|_| RecordError("partial voxel outside the object"))?;
         let cells = CELLS_PER_AXIS.pow(3);
         let struck = read_bits(take(cells.div_ceil(8))?, cells);
         let entries = cells * DIRECTIONS * BANDS;
