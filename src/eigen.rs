@@ -67,7 +67,9 @@ pub enum SolverKind {
     /// Measured (`modalforge modes --solver ...`, one core, hex8i, 20 modes): the 32^3 sphere
     /// (59k DOFs) takes 2.1 s by LOBPCG and 8.2 s by Lanczos, the 32^3 bowl (15k DOFs) 0.42 s
     /// and 0.56 s; for many modes Lanczos wins (80 modes of the bowl, before Lanczos was
-    /// made faster: 4.5 s against 6.3 s).
+    /// made faster: 4.5 s against 6.3 s). Where LOBPCG stalls (`NoConvergence`: its multigrid
+    /// coarsens cut voxels as whole ones, and about one generated object in twenty stalled at a
+    /// residual of 1e-3), Auto solves again by Lanczos.
     Auto,
 }
 
@@ -352,6 +354,12 @@ pub fn solve(
         _ => {}
     }
     match solver.resolve(model.dofs(), options) {
+        // Auto's LOBPCG can stall where its multigrid (built from whole voxels) preconditions a
+        // cut object badly; Auto then answers by Lanczos rather than fail.
+        SolverKind::Lobpcg if solver == SolverKind::Auto => match lobpcg::solve(model, options) {
+            Err(EigenError::NoConvergence { .. }) => lanczos::solve(model, options),
+            answer => answer,
+        },
         SolverKind::Lobpcg => lobpcg::solve(model, options),
         _ => lanczos::solve(model, options),
     }

@@ -178,3 +178,38 @@ fn lobpcg_misses_no_mode_of_a_thin_shell() {
         assert!((a - b).abs() <= 1e-4 * b, "LOBPCG {a} vs Lanczos {b}");
     }
 }
+
+/// A generated dataset object (seed 1, training object 5: a 17 x 27 x 25 solid with cut
+/// surfaces, ~40k DOFs) on which LOBPCG's multigrid stalls at a residual of ~1e-3: `Auto`
+/// picks LOBPCG there and must still answer (by Lanczos), with the same modes below the bound
+/// as Lanczos asked directly, and the identities met.
+#[test]
+fn auto_answers_where_lobpcg_stalls() {
+    use modalforge::predictor::{bands, dataset};
+    let (_, grid) = dataset::object(1, false, 5);
+    let model = FemModel::assemble(
+        &grid,
+        ElementKind::Hex8Incompatible,
+        dataset::REFERENCE_POISSON,
+    )
+    .expect("assemble");
+    let opts = EigenOptions {
+        count: ModeCount::Below(bands::reference_eigenvalue(bands::HIGH_HZ)),
+        ..Default::default()
+    };
+    assert_eq!(
+        SolverKind::Auto.resolve(model.dofs(), &opts),
+        SolverKind::Lobpcg
+    );
+    assert!(
+        eigen::solve(&model, SolverKind::Lobpcg, &opts).is_err(),
+        "LOBPCG converged here: pick another object for this regression test"
+    );
+    let auto = eigen::solve(&model, SolverKind::Auto, &opts).expect("auto answers");
+    let lanczos = eigen::solve(&model, SolverKind::Lanczos, &opts).expect("lanczos");
+    assert_eq!(auto.eigenvalues, lanczos.eigenvalues);
+    let (res, orth) = identities(&model, &auto);
+    // Recomputed independently of the solver: 2x the tolerance for rounding, as above.
+    assert!(res <= 2.0 * opts.tolerance, "residual {res:e}");
+    assert!(orth < 1e-8, "orthonormality {orth:e}");
+}
