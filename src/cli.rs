@@ -9,6 +9,7 @@
 
 pub mod chart;
 pub mod object;
+pub mod predictor;
 
 use crate::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
 use crate::synth::render::{self, BankKind, Performance, RenderError};
@@ -45,6 +46,11 @@ pub enum Command {
     /// Generate the neural predictor's training data: varied objects in a 32^3 box, labelled
     /// by FEM in the band representation (resumable: finished records are kept).
     Dataset(DatasetArgs),
+    /// Train the neural predictor on a dataset (CPU; checkpoints each epoch and resumes).
+    Train(predictor::TrainArgs),
+    /// The neural predictor's tools.
+    #[command(subcommand)]
+    Predictor(predictor::PredictorCommand),
 }
 
 /// Options of `modalforge dataset`.
@@ -236,6 +242,10 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
         Command::Materials => Ok(materials_table()),
         Command::Chart(args) => chart::chart_command(&args),
         Command::Dataset(args) => dataset_command(&args),
+        Command::Train(args) => predictor::train_command(&args),
+        Command::Predictor(predictor::PredictorCommand::Eval(args)) => {
+            predictor::eval_command(&args)
+        }
         Command::Modes(args) => modes_command(&args),
         Command::Render(args) => {
             let json = args.json;

@@ -6,7 +6,196 @@
 //! log-amplitude per mel band) plus, per band, the exact frequency of its strongest mode, so a
 //! predicted mode is in tune rather than at its band centre. [`bands`] encodes a FEM
 //! [`crate::modal::ModeBasis`] into that form (the training labels) and decodes it back to
-//! modes a strike plays. The network, its training and the dataset are not built yet.
+//! modes a strike plays. [`network`] is the burn network, [`train`] fits it (`modalforge
+//! train`) on the records [`dataset`] makes, [`metrics`] scores it, and [`Predictor`] runs it:
+//! once per shape ([`Predictor::predict`], the trunk) and once per strike
+//! ([`Prediction::strike`], one cell's 1x1 head, evaluated here in plain Rust).
 
 pub mod bands;
+pub mod baseline;
 pub mod dataset;
+pub mod metrics;
+pub mod network;
+pub mod train;
+
+use bands::{BandEncoding, BandMode, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use burn::tensor::{Device, Tensor, TensorData};
+use network::{ModeNet, MASK_CHANNELS, OUT_CHANNELS};
+use std::sync::Arc;
+
+/// The head's weights for per-cell evaluation: row-major `OUT_CHANNELS x inputs`, and biases.
+#[derive(Clone, Debug)]
+struct Head {
+    inputs: usize,
+    weights: Vec<f32>,
+    bias: Vec<f32>,
+}
+
+/// The network's answer for one shape: per-cell features (the head is applied per strike) and
+/// the per-band answers.
+#[derive(Clone, Debug)]
+pub struct Prediction {
+    /// Whether each strike cell holds surface (from the shape, as the labels define it).
+    pub struck: Vec<bool>,
+    /// `log10(Hz)` at the reference of each band's predicted mode; `None` where the network
+    /// predicts an empty band.
+    pub band_log_hz: [Option<f32>; BANDS],
+    /// Per-cell features, `[inputs][cell]`.
+    features: Vec<f32>,
+    head: Arc<Head>,
+}
+
+impl Prediction {
+    /// The head's outputs at one cell: mask logits, then log-amplitudes.
+    fn cell_outputs(&self, cell: usize) -> [f32; OUT_CHANNELS] {
+        let cells = CELLS_PER_AXIS.pow(3);
+        let h = &self.head;
+        let mut out = [0.0f32; OUT_CHANNELS];
+        for (o, row) in out.iter_mut().zip(h.weights.chunks_exact(h.inputs)) {
+            *o = row
+                .iter()
+                .enumerate()
+                .map(|(i, w)| w * self.features[i * cells + cell])
+                .sum();
+        }
+        for (o, b) in out.iter_mut().zip(&h.bias) {
+            *o += b;
+        }
+        out
+    }
+
+    /// The band encoding of one cell written into `mask`/`log_amplitude` (layout of
+    /// [`BandEncoding`], entries `cell * DIRECTIONS * BANDS ..`).
+    fn write_cell(&self, cell: usize, mask: &mut [bool], log_amplitude: &mut [f32]) {
+        let out = self.cell_outputs(cell);
+        for dir in 0..DIRECTIONS {
+            for b in 0..BANDS {
+                let ch = dir * BANDS + b;
+                let i = (cell * DIRECTIONS + dir) * BANDS + b;
+                mask[i] = out[ch] > 0.0;
+                log_amplitude[i] = if mask[i] {
+                    out[MASK_CHANNELS + ch].clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+
+    /// The whole prediction as a [`BandEncoding`] (every struck cell decoded: for scoring).
+    pub fn to_encoding(&self) -> BandEncoding {
+        let entries = self.struck.len() * DIRECTIONS * BANDS;
+        let (mut mask, mut log_amplitude) = (vec![false; entries], vec![0.0f32; entries]);
+        for (cell, _) in self.struck.iter().enumerate().filter(|(_, &s)| s) {
+            self.write_cell(cell, &mut mask, &mut log_amplitude);
+        }
+        BandEncoding {
+            struck: self.struck.clone(),
+            mask,
+            log_amplitude,
+            band_log_hz: self.band_log_hz,
+        }
+    }
+
+    /// The modes a strike at `cell` along `direction` plays, at the reference, as
+    /// [`BandEncoding::strike`] gives them for FEM's labels (one cell decoded: microseconds).
+    pub fn strike(&self, cell: [usize; 3], direction: [f64; 3]) -> Vec<BandMode> {
+        if cell.iter().any(|&c| c >= CELLS_PER_AXIS) {
+            return Vec::new();
+        }
+        let index = cell[0] + CELLS_PER_AXIS * (cell[1] + CELLS_PER_AXIS * cell[2]);
+        if !self.struck[index] {
+            return Vec::new();
+        }
+        // A one-cell encoding: the other cells stay unstruck and empty.
+        let mut one = BandEncoding {
+            struck: vec![false; self.struck.len()],
+            mask: vec![false; self.struck.len() * DIRECTIONS * BANDS],
+            log_amplitude: vec![0.0; self.struck.len() * DIRECTIONS * BANDS],
+            band_log_hz: self.band_log_hz,
+        };
+        one.struck[index] = true;
+        self.write_cell(index, &mut one.mask, &mut one.log_amplitude);
+        one.strike(cell, direction)
+    }
+}
+
+/// Runs the network on shapes that fit the 32^3 box (`device` without autodiff).
+pub fn predict_batch(
+    model: &ModeNet,
+    grids: &[&crate::shape::VoxelGrid],
+    device: &Device,
+) -> Vec<Prediction> {
+    let n = INPUT_SIDE;
+    let b = grids.len();
+    let mut fills = Vec::with_capacity(b * n * n * n);
+    for g in grids {
+        fills.extend(train::input_of(g, [0, 1, 2]));
+    }
+    let input = Tensor::<5>::from_data(TensorData::new(fills, [b, 1, n, n, n]), device);
+    let trunk = model.trunk(input);
+    let (weights, bias) = model.head_matrix();
+    let features = trunk.features.into_data().try_to_vec::<f32>().expect("f32");
+    let logits = trunk
+        .band_logit
+        .into_data()
+        .try_to_vec::<f32>()
+        .expect("f32");
+    let positions = trunk
+        .band_position
+        .into_data()
+        .try_to_vec::<f32>()
+        .expect("f32");
+    let per = features.len() / b.max(1);
+    let cells = CELLS_PER_AXIS.pow(3);
+    let head = Arc::new(Head {
+        inputs: per / cells,
+        weights,
+        bias,
+    });
+    grids
+        .iter()
+        .enumerate()
+        .map(|(k, g)| Prediction {
+            struck: bands::struck_cells(g),
+            band_log_hz: std::array::from_fn(|band| {
+                (logits[k * BANDS + band] > 0.0)
+                    .then(|| metrics::band_log_hz(band, positions[k * BANDS + band] as f64) as f32)
+            }),
+            features: features[k * per..(k + 1) * per].to_vec(),
+            head: head.clone(),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shape::VoxelGrid;
+
+    #[test]
+    fn one_cell_decoding_matches_the_whole_map() {
+        // The per-strike path (one cell's head in plain Rust) against the whole-map path
+        // (burn's 1x1 convolution over every cell): same modes, gains to f32 rounding.
+        let device = Device::flex();
+        let model = ModeNet::new(network::Widths::SHIPPED, &device);
+        let grid = VoxelGrid::from_fn([20, 12, 6], 1.0, |_, _, _| true).unwrap();
+        let p = &predict_batch(&model, &[&grid], &device)[0];
+        let whole = model.head(&model.trunk(Tensor::<5>::from_data(
+            TensorData::new(train::input_of(&grid, [0, 1, 2]), [1, 1, 32, 32, 32]),
+            &device,
+        )));
+        let whole = whole.into_data().try_to_vec::<f32>().unwrap();
+        let cells = CELLS_PER_AXIS.pow(3);
+        let cell = 3 + CELLS_PER_AXIS * (5 + CELLS_PER_AXIS * 2);
+        let one = p.cell_outputs(cell);
+        for (ch, v) in one.iter().enumerate() {
+            assert!((v - whole[ch * cells + cell]).abs() < 1e-4, "channel {ch}");
+        }
+        let enc = p.to_encoding();
+        for dir in [[1.0, 0.0, 0.0], [0.3, -0.2, 0.9]] {
+            assert_eq!(p.strike([3, 5, 2], dir), enc.strike([3, 5, 2], dir));
+        }
+        assert!(p.strike([15, 15, 15], [0.0, 0.0, 1.0]).is_empty());
+    }
+}

@@ -144,6 +144,17 @@ fn on_surface(grid: &VoxelGrid, v: [usize; 3]) -> bool {
             .any(|n| !grid.get(p[0] + n[0], p[1] + n[1], p[2] + n[2]))
 }
 
+/// Which strike cells (x fastest) hold surface: a solid voxel with an empty face neighbour.
+pub fn struck_cells(grid: &VoxelGrid) -> Vec<bool> {
+    let mut struck = vec![false; CELLS_PER_AXIS.pow(3)];
+    for v in grid.solid_voxels() {
+        if v.iter().all(|&c| c < INPUT_SIDE) && on_surface(grid, v) {
+            struck[cell_index(v.map(|c| c / 2))] = true;
+        }
+    }
+    struck
+}
+
 impl BandEncoding {
     /// Encodes the modes of `basis`, solved for `grid` (at most 32^3; voxel edge 1 in
     /// reference units, as [`ModeBasis::solve`] takes it).
@@ -153,12 +164,7 @@ impl BandEncoding {
             return Err(EncodeError::TooLarge(dims));
         }
         let cells = CELLS_PER_AXIS.pow(3);
-        let mut struck = vec![false; cells];
-        for v in grid.solid_voxels() {
-            if on_surface(grid, v) {
-                struck[cell_index(v.map(|c| c / 2))] = true;
-            }
-        }
+        let struck = struck_cells(grid);
         let eigenvalues = &basis.solution.eigenvalues;
         let bands: Vec<Option<usize>> = eigenvalues
             .iter()

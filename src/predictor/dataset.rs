@@ -112,22 +112,31 @@ fn place(into: &VoxelGrid, shape: &VoxelGrid, rng: &mut Stream, join: bool) -> V
     op(into, shape, offset).unwrap_or_else(|_| into.clone())
 }
 
-/// A random solid primitive no longer than `max_side` voxels.
+/// A random solid primitive no longer than `max_side` voxels, its longest side at least 0.6 of
+/// that. The product scales an object to fill the box before it predicts (the size scaling law
+/// of Deep-Modal eq. 11 then maps it back), and a small solid rings above the top band at the
+/// reference: labels of small solids would be empty.
 fn solid_primitive(rng: &mut Stream, max_side: f64) -> VoxelGrid {
     let s = |rng: &mut Stream| rng.range(3.0, max_side);
+    let big = rng.range(0.6 * max_side, max_side);
     let shape = match rng.int(0, 3) {
         0 => Primitive::Box {
-            x: s(rng),
+            x: big,
             y: s(rng),
             z: s(rng),
         },
-        1 => Primitive::Sphere { diameter: s(rng) },
-        2 => Primitive::Cylinder {
-            diameter: s(rng),
-            height: s(rng),
-        },
+        1 => Primitive::Sphere { diameter: big },
+        2 => {
+            let other = s(rng);
+            let (diameter, height) = if rng.int(0, 1) == 0 {
+                (big, other)
+            } else {
+                (other, big)
+            };
+            Primitive::Cylinder { diameter, height }
+        }
         _ => Primitive::Bar {
-            length: s(rng),
+            length: big,
             width: rng.range(2.0, 8.0),
             height: rng.range(2.0, 8.0),
         },

@@ -1,0 +1,151 @@
+//! `modalforge train` and `modalforge predictor eval`: fitting the neural predictor and scoring
+//! it on the held-out split.
+//!
+//! Where it sits: between [`crate::predictor::dataset`]'s records on disk and
+//! [`crate::predictor::train`] / [`crate::predictor::metrics`].
+
+use super::CliError;
+use crate::predictor::dataset::Record;
+use crate::predictor::{baseline, metrics, train};
+use std::path::PathBuf;
+
+/// Options of `modalforge train`.
+#[derive(clap::Args, Debug)]
+pub struct TrainArgs {
+    /// Dataset directory (made by `modalforge dataset`).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// Checkpoint directory: model.bpk, optimizer.bpk, state.json (a run resumes from it).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Epochs in all (a resumed run continues up to this many).
+    #[arg(long, value_name = "N", default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub epochs: u32,
+    /// Objects per optimiser step.
+    #[arg(long, value_name = "N", default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub batch: u32,
+    /// Initial learning rate (Adam).
+    #[arg(long, value_name = "LR", default_value_t = 2e-3)]
+    pub learning_rate: f64,
+    /// Epochs between halvings of the learning rate.
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    pub halve_every: usize,
+    /// Held-out objects scored after each epoch.
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    pub validate: usize,
+    /// Shuffling and augmentation seed.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// Threads [default: every core].
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+}
+
+/// `modalforge predictor ...`.
+#[derive(clap::Subcommand, Debug)]
+pub enum PredictorCommand {
+    /// Score the predictor on the held-out split: mask recall and precision, amplitude MSE,
+    /// pitch error, inference time; beside the nearest-shape baseline.
+    Eval(EvalArgs),
+}
+
+/// Options of `modalforge predictor eval`.
+#[derive(clap::Args, Debug)]
+pub struct EvalArgs {
+    /// Dataset directory (its held-out split is scored).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// Weights to score (a checkpoint's model.bpk).
+    #[arg(long, value_name = "FILE.bpk")]
+    pub weights: PathBuf,
+    /// Score at most this many held-out objects [default: all].
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+}
+
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return Err(CliError::Option(
+            "--threads 0: use at least one thread".into(),
+        ));
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CliError::Option(format!("cannot start {threads} threads: {e}")))
+}
+
+/// Runs `modalforge train`.
+pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
+    let options = train::TrainOptions {
+        data: args.data.clone(),
+        out: args.out.clone(),
+        epochs: args.epochs as usize,
+        batch: args.batch as usize,
+        learning_rate: args.learning_rate,
+        halve_every: args.halve_every,
+        validate: args.validate,
+        seed: args.seed,
+    };
+    if !(args.learning_rate.is_finite() && args.learning_rate > 0.0 && args.learning_rate < 1.0) {
+        return Err(CliError::Option(format!(
+            "--learning-rate {}: use a value in (0, 1), e.g. 2e-3",
+            args.learning_rate
+        )));
+    }
+    let state = thread_pool(args.threads)?
+        .install(|| train::train(&options))
+        .map_err(|e| CliError::Option(e.to_string()))?;
+    let last = state.history.last();
+    Ok(format!(
+        "{} epochs, {} steps, {:.0} s of training; weights in {}{}",
+        state.epoch,
+        state.step,
+        state.seconds,
+        args.out.join("model.bpk").display(),
+        last.and_then(|r| r.validation.as_ref())
+            .map(|m| format!("; held-out: {m}"))
+            .unwrap_or_default()
+    ))
+}
+
+/// Runs `modalforge predictor eval`.
+pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
+    let device = burn::tensor::Device::flex();
+    let model =
+        train::load_model(&args.weights, &device).map_err(|e| CliError::Option(e.to_string()))?;
+    let held: Vec<Record> = train::read_split(&args.data, true)
+        .map_err(|e| CliError::Option(e.to_string()))?
+        .iter()
+        .filter_map(|b| Record::decode(b).ok())
+        .take(args.limit.unwrap_or(usize::MAX))
+        .collect();
+    if held.is_empty() {
+        return Err(CliError::Option(format!(
+            "no held-out records under {}: make them with `modalforge dataset --out {}`",
+            args.data.display(),
+            args.data.display()
+        )));
+    }
+    let t0 = std::time::Instant::now();
+    let network = thread_pool(Some(1))?.install(|| metrics::evaluate(&model, &held, &device));
+    let per_shape_ms = t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64;
+    let train: Vec<Record> = train::read_split(&args.data, false)
+        .map_err(|e| CliError::Option(e.to_string()))?
+        .iter()
+        .filter_map(|b| Record::decode(b).ok())
+        .collect();
+    let matcher = baseline::ShapeMatch::new(&train);
+    let scores: Vec<metrics::ObjectScore> = held
+        .iter()
+        .filter_map(|r| Some(metrics::score(matcher.predict(&r.grid)?, &r.labels)))
+        .collect();
+    let matched = metrics::summarise(&scores);
+    Ok(format!(
+        "network:        {network} ({per_shape_ms:.1} ms per shape scored, batches of 8, one thread)\n\
+         shape matching: {matched} (nearest of {} training shapes)",
+        train.len()
+    ))
+}

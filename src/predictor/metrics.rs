@@ -1,0 +1,229 @@
+//! How close a predicted band encoding is to FEM's: the figures `modalforge predictor eval`
+//! and each training epoch print.
+//!
+//! Where it sits: [`score`] compares two [`BandEncoding`]s of one object (the prediction and
+//! the FEM labels); [`evaluate`] runs the network over held-out records and averages. The
+//! definitions follow Deep-Modal (Jin, Li and Manocha 2020, sec. 5.2, Table 1): recall and
+//! precision of the masks and the mean squared error of the normalised log-amplitudes, each
+//! averaged per object, here over every struck cell and force direction of the object (the
+//! paper draws one random contact position per object: the same expectation, less noise). The
+//! predicted amplitude counts only where its mask is on (the paper's eq. 9). Beyond the paper:
+//! the pitch error, in cents, of each predicted band frequency against the FEM mode it stands
+//! for (bands FEM and the prediction both fill), reported as a median.
+
+use super::bands::{band_edges_hz, BandEncoding, BANDS};
+use super::dataset::Record;
+use super::network::ModeNet;
+use burn::tensor::Device;
+
+/// Held-out figures (see the module docs).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Metrics {
+    /// Objects scored.
+    pub objects: usize,
+    /// Mean over objects of the masks' recall.
+    pub mask_recall: f64,
+    /// Mean over objects of the masks' precision.
+    pub mask_precision: f64,
+    /// Mean over objects of the log-amplitudes' squared error.
+    pub amplitude_mse: f64,
+    /// Median pitch error of the band frequencies, cents (absolute).
+    pub pitch_median_cents: f64,
+    /// Median pitch error had the bands been played at their centres, cents.
+    pub band_centre_median_cents: f64,
+}
+
+impl std::fmt::Display for Metrics {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "recall {:.1} %, precision {:.1} %, amplitude MSE {:.4}, pitch median {:.1} cents (band centres {:.1}), {} objects",
+            100.0 * self.mask_recall,
+            100.0 * self.mask_precision,
+            self.amplitude_mse,
+            self.pitch_median_cents,
+            self.band_centre_median_cents,
+            self.objects
+        )
+    }
+}
+
+/// Where `log10(hz)` lies in band `b`: 0 at its lower edge, 1 at its upper, in log frequency.
+pub fn band_position(b: usize, log_hz: f64) -> f64 {
+    let e = band_edges_hz();
+    let (lo, hi) = (e[b].log10(), e[b + 1].log10());
+    ((log_hz - lo) / (hi - lo)).clamp(0.0, 1.0)
+}
+
+/// `log10(Hz)` of position `p` in band `b` (the inverse of [`band_position`]).
+pub fn band_log_hz(b: usize, p: f64) -> f64 {
+    let e = band_edges_hz();
+    let (lo, hi) = (e[b].log10(), e[b + 1].log10());
+    lo + p.clamp(0.0, 1.0) * (hi - lo)
+}
+
+/// One object's comparison.
+#[derive(Clone, Debug, Default)]
+pub struct ObjectScore {
+    /// Mask entries on in both.
+    pub true_positive: usize,
+    /// On in the prediction only.
+    pub false_positive: usize,
+    /// On in the labels only.
+    pub false_negative: usize,
+    /// Sum of squared log-amplitude errors over struck entries.
+    pub squared_error: f64,
+    /// Struck entries (cells x directions x bands).
+    pub entries: usize,
+    /// Cents off, per band both fill.
+    pub cents: Vec<f64>,
+    /// Cents off had the band been played at its centre, same bands.
+    pub centre_cents: Vec<f64>,
+}
+
+/// Compares a prediction with the labels of the same object (struck cells from the labels).
+pub fn score(predicted: &BandEncoding, truth: &BandEncoding) -> ObjectScore {
+    let mut s = ObjectScore::default();
+    let per_cell = truth.mask.len() / truth.struck.len().max(1);
+    for (cell, _) in truth.struck.iter().enumerate().filter(|(_, &on)| on) {
+        for i in cell * per_cell..(cell + 1) * per_cell {
+            let (p, t) = (predicted.mask[i], truth.mask[i]);
+            match (p, t) {
+                (true, true) => s.true_positive += 1,
+                (true, false) => s.false_positive += 1,
+                (false, true) => s.false_negative += 1,
+                (false, false) => {}
+            }
+            let pa = if p { predicted.log_amplitude[i] } else { 0.0 };
+            let ta = if t { truth.log_amplitude[i] } else { 0.0 };
+            s.squared_error += ((pa - ta) as f64).powi(2);
+            s.entries += 1;
+        }
+    }
+    let e = band_edges_hz();
+    for b in 0..BANDS {
+        if let (Some(p), Some(t)) = (predicted.band_log_hz[b], truth.band_log_hz[b]) {
+            let cents =
+                |log_hz: f64| (1200.0 * (log_hz - t as f64) * std::f64::consts::LOG2_10).abs();
+            s.cents.push(cents(p as f64));
+            s.centre_cents.push(cents((e[b] * e[b + 1]).sqrt().log10()));
+        }
+    }
+    s
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Averages per-object scores into [`Metrics`] (an object with no predicted positive adds no
+/// precision; one with no true positive adds no recall).
+pub fn summarise(scores: &[ObjectScore]) -> Metrics {
+    let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let recall = scores
+        .iter()
+        .filter(|s| s.true_positive + s.false_negative > 0)
+        .map(|s| s.true_positive as f64 / (s.true_positive + s.false_negative) as f64)
+        .collect();
+    let precision = scores
+        .iter()
+        .filter(|s| s.true_positive + s.false_positive > 0)
+        .map(|s| s.true_positive as f64 / (s.true_positive + s.false_positive) as f64)
+        .collect();
+    let mse = scores
+        .iter()
+        .filter(|s| s.entries > 0)
+        .map(|s| s.squared_error / s.entries as f64)
+        .collect();
+    Metrics {
+        objects: scores.len(),
+        mask_recall: mean(recall),
+        mask_precision: mean(precision),
+        amplitude_mse: mean(mse),
+        pitch_median_cents: median(scores.iter().flat_map(|s| s.cents.clone()).collect()),
+        band_centre_median_cents: median(
+            scores.iter().flat_map(|s| s.centre_cents.clone()).collect(),
+        ),
+    }
+}
+
+/// Scores the network on `records` (batches of 8 on `device`, which must not be an autodiff
+/// one).
+pub fn evaluate(model: &ModeNet, records: &[Record], device: &Device) -> Metrics {
+    let mut scores = Vec::with_capacity(records.len());
+    for chunk in records.chunks(8) {
+        let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
+        let predicted = super::predict_batch(model, &grids, device);
+        for (p, r) in predicted.iter().zip(chunk) {
+            scores.push(score(&p.to_encoding(), &r.labels));
+        }
+    }
+    summarise(&scores)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::predictor::bands::{CELLS_PER_AXIS, DIRECTIONS};
+
+    fn encoding() -> BandEncoding {
+        let cells = CELLS_PER_AXIS.pow(3);
+        let mut e = BandEncoding {
+            struck: vec![false; cells],
+            mask: vec![false; cells * DIRECTIONS * BANDS],
+            log_amplitude: vec![0.0; cells * DIRECTIONS * BANDS],
+            band_log_hz: [None; BANDS],
+        };
+        e.struck[0] = true;
+        for b in [3, 4, 10] {
+            e.mask[b] = true;
+            e.log_amplitude[b] = 0.5;
+        }
+        e.band_log_hz[10] = Some(band_log_hz(10, 0.25) as f32);
+        e
+    }
+
+    #[test]
+    fn scores_follow_their_definitions() {
+        let truth = encoding();
+        let same = summarise(&[score(&truth, &truth)]);
+        assert_eq!((same.mask_recall, same.mask_precision), (1.0, 1.0));
+        assert_eq!((same.amplitude_mse, same.pitch_median_cents), (0.0, 0.0));
+        // Band 4 dropped, band 20 added at 0.5, band 3 at 0.7; the band frequency a tenth of
+        // the band higher: recall 2/3, precision 2/3, squared errors 0.25 + 0.25 + 0.04 over
+        // the 96 entries of the one struck cell.
+        let mut p = encoding();
+        p.mask[4] = false;
+        p.mask[20] = true;
+        p.log_amplitude[20] = 0.5;
+        p.log_amplitude[3] = 0.7;
+        p.band_log_hz[10] = Some(band_log_hz(10, 0.35) as f32);
+        let m = summarise(&[score(&p, &truth)]);
+        assert!((m.mask_recall - 2.0 / 3.0).abs() < 1e-12);
+        assert!((m.mask_precision - 2.0 / 3.0).abs() < 1e-12);
+        assert!(
+            (m.amplitude_mse - 0.54 / 96.0).abs() < 1e-7,
+            "{}",
+            m.amplitude_mse
+        );
+        // A tenth of band 10 in cents: 1200 log2(e11 / e10) / 10, from the edges.
+        let e = band_edges_hz();
+        let tenth = 120.0 * (e[11] / e[10]).log2();
+        assert!(
+            (m.pitch_median_cents - tenth).abs() < 0.01,
+            "{}",
+            m.pitch_median_cents
+        );
+        // The band centre is at position 0.5: a quarter band from 0.25.
+        assert!((m.band_centre_median_cents - 2.5 * tenth).abs() < 0.01);
+    }
+}

@@ -1,0 +1,270 @@
+//! The predictor's network: a small 3D encoder-decoder from a shape's 32^3 fill fractions to its
+//! band representation ([`super::bands`]), sized for one CPU core.
+//!
+//! Where it sits: [`super::Predictor`] runs [`ModeNet::trunk`] once per shape edit (the
+//! expensive part) and [`Trunk::strike`] per strike (one cell's 1x1 head: microseconds);
+//! [`super::train`] fits it with [`ModeNet::loss`].
+//!
+//! The architecture follows Deep-Modal (Jin, Li and Manocha 2020, sec. 4.2: an encoder of
+//! strided convolutions, a decoder of transposed convolutions with skip connections, a sound
+//! feature map at 16^3), made lean for the CPU:
+//! - a 2x2x2 patch convolution takes the 32^3 input straight to the 16^3 strike grid;
+//! - two strided 3x3x3 convolutions go down to 8^3 and 4^3, a residual block works at 4^3;
+//! - a global branch (mean and max over the 4^3 features) predicts, per band, whether it holds
+//!   a mode and where in the band its strongest mode lies, and conditions the decoder (a mode's
+//!   band is a property of the whole shape);
+//! - two transposed convolutions come back to 16^3, adding the encoder's features at each
+//!   scale; a 1x1 head gives, per cell, [`OUT_CHANNELS`] = 3 directions x 32 bands of mask
+//!   logits, then as many log-amplitudes.
+//!
+//! Tensor layout: burn's `[batch, channel, depth, height, width]` with depth = z, height = y,
+//! width = x, so a flattened volume is indexed `x + n (y + n z)` as [`super::bands`] indexes
+//! its cells.
+
+use super::bands::{BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use burn::module::Module;
+use burn::nn::conv::{Conv3d, Conv3dConfig, ConvTranspose3d, ConvTranspose3dConfig};
+use burn::nn::{Linear, LinearConfig, PaddingConfig3d};
+use burn::tensor::activation::{relu, sigmoid};
+use burn::tensor::{Device, Tensor};
+
+/// Mask logits per cell: one per direction and band.
+pub const MASK_CHANNELS: usize = DIRECTIONS * BANDS;
+/// Head outputs per cell: mask logits, then log-amplitudes (same order).
+pub const OUT_CHANNELS: usize = 2 * MASK_CHANNELS;
+
+/// Channel widths of the network (the shipped weights fix them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Widths {
+    /// Features at 16^3 (the patch convolution and the last decoder stage).
+    pub c16: usize,
+    /// Features at 8^3.
+    pub c8: usize,
+    /// Features at 4^3.
+    pub c4: usize,
+    /// The global branch's hidden width.
+    pub global: usize,
+    /// Per-cell features the head reads.
+    pub head_in: usize,
+}
+
+impl Widths {
+    /// The shipped network's widths.
+    pub const SHIPPED: Widths = Widths {
+        c16: 16,
+        c8: 32,
+        c4: 64,
+        global: 128,
+        head_in: 32,
+    };
+}
+
+/// The network (see the module docs).
+#[derive(Module, Debug)]
+pub struct ModeNet {
+    patch: Conv3d,
+    down8: Conv3d,
+    down4: Conv3d,
+    res_a: Conv3d,
+    res_b: Conv3d,
+    global_hidden: Linear,
+    global_bands: Linear,
+    global_film: Linear,
+    up8: ConvTranspose3d,
+    fuse8: Conv3d,
+    up16: ConvTranspose3d,
+    fuse16: Conv3d,
+    head: Conv3d,
+}
+
+/// What the network computes once per shape: the per-cell features the head reads, and the
+/// per-band answers.
+#[derive(Clone, Debug)]
+pub struct Trunk {
+    /// Per-cell features, `[batch, head_in, 16, 16, 16]`.
+    pub features: Tensor<5>,
+    /// Per band, the logit that it holds a mode, `[batch, BANDS]`.
+    pub band_logit: Tensor<2>,
+    /// Per band, where its strongest mode lies in it, 0 (lower edge) to 1 (upper edge) in log
+    /// frequency, `[batch, BANDS]`.
+    pub band_position: Tensor<2>,
+}
+
+fn conv(channels: [usize; 2], kernel: usize, stride: usize, device: &Device) -> Conv3d {
+    let pad = if kernel == 3 { 1 } else { 0 };
+    Conv3dConfig::new(channels, [kernel; 3])
+        .with_stride([stride; 3])
+        .with_padding(PaddingConfig3d::Explicit(pad, pad, pad))
+        .init(device)
+}
+
+fn up(channels: [usize; 2], device: &Device) -> ConvTranspose3d {
+    ConvTranspose3dConfig::new(channels, [2; 3])
+        .with_stride([2; 3])
+        .init(device)
+}
+
+impl ModeNet {
+    /// A freshly initialised network (random weights, burn's default initialisers).
+    pub fn new(widths: Widths, device: &Device) -> Self {
+        let Widths {
+            c16,
+            c8,
+            c4,
+            global,
+            head_in,
+        } = widths;
+        Self {
+            patch: Conv3dConfig::new([1, c16], [2; 3])
+                .with_stride([2; 3])
+                .init(device),
+            down8: conv([c16, c8], 3, 2, device),
+            down4: conv([c8, c4], 3, 2, device),
+            res_a: conv([c4, c4], 3, 1, device),
+            res_b: conv([c4, c4], 3, 1, device),
+            global_hidden: LinearConfig::new(2 * c4, global).init(device),
+            global_bands: LinearConfig::new(global, 2 * BANDS).init(device),
+            global_film: LinearConfig::new(global, c4).init(device),
+            up8: up([c4, c8], device),
+            fuse8: conv([c8, c8], 3, 1, device),
+            up16: up([c8, c16], device),
+            fuse16: conv([c16, head_in], 1, 1, device),
+            head: conv([head_in, OUT_CHANNELS], 1, 1, device),
+        }
+    }
+
+    /// The per-shape part: `fills` is `[batch, 1, 32, 32, 32]` (fill fractions, 0 outside).
+    pub fn trunk(&self, fills: Tensor<5>) -> Trunk {
+        let [batch, _, _, _, _] = fills.dims();
+        let f16 = relu(self.patch.forward(fills));
+        let f8 = relu(self.down8.forward(f16.clone()));
+        let f4 = relu(self.down4.forward(f8.clone()));
+        let r = relu(self.res_a.forward(f4.clone()));
+        let f4 = relu(f4 + self.res_b.forward(r));
+        let c4 = f4.dims()[1];
+        let flat: Tensor<3> = f4.clone().reshape([batch, c4, 64]);
+        let pooled: Tensor<2> = Tensor::cat(
+            vec![
+                flat.clone().mean_dim(2).reshape([batch, c4]),
+                flat.max_dim(2).reshape([batch, c4]),
+            ],
+            1,
+        );
+        let g = relu(self.global_hidden.forward(pooled));
+        let bands = self.global_bands.forward(g.clone());
+        let band_logit = bands.clone().narrow(1, 0, BANDS);
+        let band_position = sigmoid(bands.narrow(1, BANDS, BANDS));
+        let film: Tensor<5> = self.global_film.forward(g).reshape([batch, c4, 1, 1, 1]);
+        let f4 = f4 + film;
+        let d8 = relu(self.fuse8.forward(relu(self.up8.forward(f4) + f8)));
+        let d16 = relu(self.up16.forward(d8) + f16);
+        let features = relu(self.fuse16.forward(d16));
+        Trunk {
+            features,
+            band_logit,
+            band_position,
+        }
+    }
+
+    /// The per-cell head over the whole 16^3 grid: `[batch, OUT_CHANNELS, 16, 16, 16]`
+    /// (training; inference evaluates one cell at a time, [`Trunk::strike`]).
+    pub fn head(&self, trunk: &Trunk) -> Tensor<5> {
+        self.head.forward(trunk.features.clone())
+    }
+
+    /// The head's weights as a row-major `OUT_CHANNELS x head_in` matrix and its bias, for the
+    /// per-cell evaluation on the CPU.
+    pub fn head_matrix(&self) -> (Vec<f32>, Vec<f32>) {
+        let w = self.head.weight.val();
+        let [out, inp, _, _, _] = w.dims();
+        let weights = w
+            .reshape([out, inp])
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("f32 weights");
+        let bias = match &self.head.bias {
+            Some(b) => b.val().into_data().try_to_vec::<f32>().expect("f32 bias"),
+            None => vec![0.0; out],
+        };
+        (weights, bias)
+    }
+
+    /// Deep-Modal's loss (eq. 8) over the struck cells, plus the band terms: the mean over
+    /// struck cells, directions and bands of the masks' binary cross-entropy and the
+    /// log-amplitudes' squared error, plus the bands' presence cross-entropy and the squared
+    /// error of their in-band position (bands with a mode only).
+    pub fn loss(&self, fills: Tensor<5>, target: &Targets) -> Losses {
+        let trunk = self.trunk(fills);
+        let out = self.head(&trunk);
+        let logits = out.clone().narrow(1, 0, MASK_CHANNELS);
+        let amps = out.narrow(1, MASK_CHANNELS, MASK_CHANNELS);
+        let struck = target.struck.clone();
+        let cells = struck.clone().sum().clamp_min(1.0) * MASK_CHANNELS as f64;
+        let mask_bce =
+            (bce_with_logits(logits, target.mask.clone()) * struck.clone()).sum() / cells.clone();
+        let diff = amps - target.amplitude.clone();
+        let amplitude_mse = (diff.clone() * diff * struck).sum() / cells;
+        let band_bce = bce_with_logits(trunk.band_logit, target.band_present.clone()).mean();
+        let pd = trunk.band_position - target.band_position.clone();
+        let present = target.band_present.clone();
+        let position_mse = (pd.clone() * pd * present.clone()).sum() / present.sum().clamp_min(1.0);
+        Losses {
+            mask_bce,
+            amplitude_mse,
+            band_bce,
+            position_mse,
+        }
+    }
+}
+
+/// Binary cross-entropy from logits, elementwise, in the stable form
+/// `max(x, 0) - x y + log(1 + exp(-|x|))`.
+fn bce_with_logits<const D: usize>(x: Tensor<D>, y: Tensor<D>) -> Tensor<D> {
+    x.clone().clamp_min(0.0) - x.clone() * y + x.abs().neg().exp().log1p()
+}
+
+/// A batch's targets, laid out as the network's outputs.
+#[derive(Clone, Debug)]
+pub struct Targets {
+    /// 1 for cells with surface, `[batch, 1, 16, 16, 16]`.
+    pub struck: Tensor<5>,
+    /// Masks, `[batch, MASK_CHANNELS, 16, 16, 16]` (channel = direction x 32 + band).
+    pub mask: Tensor<5>,
+    /// Normalised log-amplitudes, 0 where the mask is off, same layout.
+    pub amplitude: Tensor<5>,
+    /// 1 for bands that hold a mode, `[batch, BANDS]`.
+    pub band_present: Tensor<2>,
+    /// In-band position of each band's strongest mode (0 for empty bands), `[batch, BANDS]`.
+    pub band_position: Tensor<2>,
+}
+
+/// The loss terms of one batch (scalars, `[1]`).
+#[derive(Clone, Debug)]
+pub struct Losses {
+    /// Masks' binary cross-entropy.
+    pub mask_bce: Tensor<1>,
+    /// Log-amplitudes' squared error.
+    pub amplitude_mse: Tensor<1>,
+    /// Band presence cross-entropy.
+    pub band_bce: Tensor<1>,
+    /// In-band position squared error.
+    pub position_mse: Tensor<1>,
+}
+
+impl Losses {
+    /// The training objective: eq. 8 with `lambda_1 = lambda_2 = 1`, plus the band terms (the
+    /// position error weighted up: a tenth of a band is ~1.4 semitones at 1 kHz, and its
+    /// squared error, 0.01, would otherwise be lost beside the mask term).
+    pub fn total(&self) -> Tensor<1> {
+        self.mask_bce.clone()
+            + self.amplitude_mse.clone()
+            + self.band_bce.clone() * 0.1
+            + self.position_mse.clone() * POSITION_WEIGHT
+    }
+}
+
+/// Weight of the in-band position term in [`Losses::total`].
+pub const POSITION_WEIGHT: f64 = 10.0;
+
+/// Shapes of the network's input and outputs, checked at compile time against the bands.
+const _: () = assert!(INPUT_SIDE == 2 * CELLS_PER_AXIS && CELLS_PER_AXIS == 16);
