@@ -89,6 +89,10 @@ pub struct ModesArgs {
     /// "timings_ms"}; readable by `render --modes`.
     #[arg(long)]
     pub json: bool,
+    /// With --solver neural: also print the predicted band representation at the strike
+    /// (per band: frequency, masks and log-amplitudes for forces along x, y, z).
+    #[arg(long)]
+    pub bands: bool,
 }
 
 /// Options of `modalforge render`.
@@ -311,12 +315,25 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
                 object_args.size = Some(0.32);
             }
             let object = object::Object::from_args(&object_args, Some(args.fmax))?;
-            let count = object.count(None, Some(args.fmax))?;
-            let basis = object.solve(count, object_args.tolerance)?;
-            let hit = object.hit(&basis, &object_args)?;
-            basis
-                .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
-                .map_err(object::ObjectError::from)?
+            if object.neural {
+                let (predicted, hit) = object.predict(&object_args)?;
+                let report =
+                    object::neural_report(&object, &predicted, &hit, None, Some(args.fmax), false);
+                let (mut f, mut d, mut g) = (Vec::new(), Vec::new(), Vec::new());
+                for m in report.modes.iter().filter(|m| !m.overdamped) {
+                    f.push(m.freq_hz);
+                    d.push(m.decay_per_s);
+                    g.push(m.gain);
+                }
+                ModeSet::new(f, d, g)?
+            } else {
+                let count = object.count(None, Some(args.fmax))?;
+                let basis = object.solve(count, object_args.tolerance)?;
+                let hit = object.hit(&basis, &object_args)?;
+                basis
+                    .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
+                    .map_err(object::ObjectError::from)?
+            }
         }
     };
     let (playable, report) = modes.playable(fs, &CullSettings::default())?;
@@ -424,12 +441,25 @@ fn to_int(y: f32, full_scale: f32) -> i32 {
 /// `modalforge modes`.
 pub fn modes_command(args: &ModesArgs) -> Result<String, CliError> {
     let object = object::Object::from_args(&args.object, args.fmax)?;
-    let count = object.count(args.modes, args.fmax)?;
-    let basis = object.solve(count, args.object.tolerance)?;
-    let hit = object.hit(&basis, &args.object)?;
-    let report = object::report(&object, &basis, &hit)?;
+    if args.bands && !object.neural {
+        return Err(CliError::Option(
+            "--bands shows the predictor's bands: add --solver neural".into(),
+        ));
+    }
+    let report = if object.neural {
+        let (predicted, hit) = object.predict(&args.object)?;
+        object::neural_report(&object, &predicted, &hit, args.modes, args.fmax, args.bands)
+    } else {
+        let count = object.count(args.modes, args.fmax)?;
+        let basis = object.solve(count, args.object.tolerance)?;
+        let hit = object.hit(&basis, &args.object)?;
+        object::report(&object, &basis, &hit)?
+    };
     if args.json {
         return Ok(serde_json::to_string_pretty(&report).expect("report serialises"));
+    }
+    if object.neural {
+        return Ok(neural_text(&report));
     }
     let mut out = format!(
         "{} voxels ({}x{}x{}, {:.4} m), {} DOFs, {} {}, {} rigid modes, {} components; \
@@ -468,6 +498,49 @@ pub fn modes_command(args: &ModesArgs) -> Result<String, CliError> {
         }
     }
     Ok(out.trim_end().to_string())
+}
+
+/// The `modes --solver neural` text: one line per predicted mode (no residuals: a prediction
+/// has none), and the bands with `--bands`.
+fn neural_text(report: &object::ModesReport) -> String {
+    let mut out = format!(
+        "{} voxels ({}x{}x{}, {:.4} m), {}; neural predictor, {:.1} ms\n  #    freq_hz  decay_per_s        gain\n",
+        report.voxels,
+        report.grid[0],
+        report.grid[1],
+        report.grid[2],
+        report.voxel_size_m,
+        report.material,
+        report.timings_ms.solve
+    );
+    for (i, m) in report.modes.iter().enumerate() {
+        out.push_str(&format!(
+            "{:>3} {:>10.2} {:>12.3} {:>11.3e}\n",
+            i + 1,
+            m.freq_hz,
+            m.decay_per_s,
+            m.gain
+        ));
+    }
+    if let Some(bands) = &report.bands {
+        out.push_str("band    freq_hz  mask x y z  log-amplitude x     y     z\n");
+        for b in bands {
+            let f = b.freq_hz.map_or("-".to_string(), |f| format!("{f:.2}"));
+            let on = |m: bool| if m { '1' } else { '0' };
+            out.push_str(&format!(
+                "{:>4} {:>10}       {} {} {}  {:>17.3} {:>5.3} {:>5.3}\n",
+                b.band,
+                f,
+                on(b.mask[0]),
+                on(b.mask[1]),
+                on(b.mask[2]),
+                b.log_amplitude[0],
+                b.log_amplitude[1],
+                b.log_amplitude[2]
+            ));
+        }
+    }
+    out.trim_end().to_string()
 }
 
 fn materials_table() -> String {

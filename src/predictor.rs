@@ -16,12 +16,107 @@ pub mod baseline;
 pub mod dataset;
 pub mod metrics;
 pub mod network;
+pub mod object;
 pub mod train;
 
 use bands::{BandEncoding, BandMode, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use network::{ModeNet, MASK_CHANNELS, OUT_CHANNELS};
+use object::PredictedObject;
 use std::sync::Arc;
+
+/// Why the predictor cannot answer.
+#[derive(Debug, thiserror::Error)]
+pub enum PredictorError {
+    /// The weights could not be read.
+    #[error(
+        "the predictor's weights ({0}) cannot be loaded: {1}; FEM still answers (--solver auto)"
+    )]
+    Weights(String, String),
+    /// Nothing to predict.
+    #[error("the shape is empty: add voxels before predicting")]
+    Empty,
+}
+
+/// The trained network, ready to predict on the CPU.
+pub struct Predictor {
+    model: ModeNet,
+    device: Device,
+}
+
+impl std::fmt::Debug for Predictor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Predictor")
+    }
+}
+
+impl Predictor {
+    /// Loads burnpack weights (`model.bpk` of a `modalforge train` checkpoint) from memory;
+    /// `name` says where they came from, for the error.
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, PredictorError> {
+        let weights =
+            |e: &dyn std::fmt::Display| PredictorError::Weights(name.into(), e.to_string());
+        let record = burn::store::ModuleRecord::from_bytes(burn::tensor::Bytes::from_bytes_vec(
+            bytes.to_vec(),
+        ))
+        .map_err(|e| weights(&e))?;
+        let device = Device::flex();
+        let model = ModeNet::new(network::Widths::SHIPPED, &device)
+            .try_load_record(record)
+            .map_err(|e| weights(&e))?;
+        Ok(Self { model, device })
+    }
+
+    /// The weights shipped in the repository (`assets/predictor/modenet.bpk`, compiled in;
+    /// `assets/predictor/README.md` says how they were trained).
+    pub fn shipped() -> Result<Self, PredictorError> {
+        // STUB until the first training run lands its weights: no shipped file yet.
+        Err(PredictorError::Weights(
+            "assets/predictor/modenet.bpk".into(),
+            "not trained yet; pass --weights".into(),
+        ))
+    }
+
+    /// Loads weights from a file.
+    pub fn from_file(path: &std::path::Path) -> Result<Self, PredictorError> {
+        let name = path.display().to_string();
+        let bytes = std::fs::read(path)
+            .map_err(|e| PredictorError::Weights(name.clone(), e.to_string()))?;
+        Self::from_bytes(&bytes, &name)
+    }
+
+    /// Predicts a shape's modes: the shape is resampled so its longest side fills the 32^3 box
+    /// (see [`object`]), then the network runs once on the calling thread's rayon pool.
+    pub fn predict(
+        &self,
+        grid: &crate::shape::VoxelGrid,
+    ) -> Result<PredictedObject, PredictorError> {
+        if grid.count() == 0 {
+            return Err(PredictorError::Empty);
+        }
+        let t0 = std::time::Instant::now();
+        let longest = grid.dims().into_iter().max().unwrap_or(1);
+        let boxed;
+        let input = if longest == object::BOX_SIDE {
+            grid
+        } else {
+            boxed = crate::shape::ops::resampled(grid, object::BOX_SIDE)
+                .ok_or(PredictorError::Empty)?;
+            &boxed
+        };
+        let prediction = predict_batch(&self.model, &[input], &self.device)
+            .pop()
+            .expect("one shape in, one answer out");
+        Ok(PredictedObject {
+            prediction,
+            grid_dims: grid.dims(),
+            box_per_voxel: object::BOX_SIDE as f64 / longest as f64,
+            volume_voxels: grid.volume_voxels(),
+            inference_ms: t0.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+}
 
 /// The head's weights for per-cell evaluation: row-major `OUT_CHANNELS x inputs`, and biases.
 #[derive(Clone, Debug)]

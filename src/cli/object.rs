@@ -62,9 +62,14 @@ pub struct ObjectArgs {
     #[arg(long, value_name = "NAME", default_value = "hex8i")]
     pub element: String,
     /// Eigensolver: auto (LOBPCG from 30k DOFs, else Lanczos), lanczos (shift-invert on a
-    /// sparse Cholesky) or lobpcg (multigrid-preconditioned).
+    /// sparse Cholesky), lobpcg (multigrid-preconditioned), or neural (the trained predictor:
+    /// milliseconds, approximate; one mode per predicted band).
     #[arg(long, value_name = "NAME", default_value = "auto")]
     pub solver: String,
+    /// Weights for --solver neural (a `modalforge train` checkpoint's model.bpk) [default: the
+    /// shipped ones].
+    #[arg(long, value_name = "FILE.bpk")]
+    pub weights: Option<std::path::PathBuf>,
     /// Residual tolerance of the eigensolver (NeuralSound eq. 6); LOBPCG never stops above 1e-6.
     #[arg(long, value_name = "TOL", default_value_t = crate::eigen::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
@@ -108,8 +113,10 @@ pub struct Object {
     pub material: Material,
     /// Element.
     pub element: ElementKind,
-    /// Solver.
+    /// Solver (FEM).
     pub solver: SolverKind,
+    /// `--solver neural`: the predictor answers instead of FEM.
+    pub neural: bool,
 }
 
 fn positive(name: &str, v: f64) -> Result<f64, ObjectError> {
@@ -187,13 +194,14 @@ impl Object {
                 args.element
             ))
         })?;
-        let solver = match args.solver.as_str() {
-            "lanczos" => SolverKind::Lanczos,
-            "lobpcg" => SolverKind::Lobpcg,
-            "auto" => SolverKind::Auto,
+        let (solver, neural) = match args.solver.as_str() {
+            "lanczos" => (SolverKind::Lanczos, false),
+            "lobpcg" => (SolverKind::Lobpcg, false),
+            "auto" => (SolverKind::Auto, false),
+            "neural" => (SolverKind::Auto, true),
             s => {
                 return Err(ObjectError::Option(format!(
-                    "--solver {s} is unknown: use auto, lanczos or lobpcg"
+                    "--solver {s} is unknown: use auto, lanczos, lobpcg or neural"
                 )))
             }
         };
@@ -278,7 +286,44 @@ impl Object {
             material,
             element,
             solver,
+            neural,
         })
+    }
+
+    /// The predictor's answer (`--solver neural`), with the strike from `--hit` / `--force`
+    /// (default: the FEM path's default hit point, pushing into the object).
+    pub fn predict(
+        &self,
+        args: &ObjectArgs,
+    ) -> Result<(crate::predictor::object::PredictedObject, Hit), ObjectError> {
+        let predictor = match &args.weights {
+            Some(path) => crate::predictor::Predictor::from_file(path),
+            None => crate::predictor::Predictor::shipped(),
+        }
+        .map_err(|e| ObjectError::Option(e.to_string()))?;
+        if self.grid.dims().into_iter().max().unwrap_or(0) != crate::predictor::bands::INPUT_SIDE {
+            eprintln!(
+                "note: the shape ({:?} voxels) is resampled to fill the predictor's {}^3 box",
+                self.grid.dims(),
+                crate::predictor::bands::INPUT_SIDE
+            );
+        }
+        let predicted = predictor
+            .predict(&self.grid)
+            .map_err(|e| ObjectError::Option(e.to_string()))?;
+        let h = self.grid.voxel_size_m();
+        let [nx, ny, nz] = self.grid.dims();
+        let mut hit = Hit {
+            point_m: [0.37 * nx as f64 * h, 0.41 * ny as f64 * h, nz as f64 * h],
+            direction: None,
+        };
+        if let Some(p) = &args.hit {
+            hit.point_m = parse_vec3("--hit", p)?;
+        }
+        if let Some(f) = &args.force {
+            hit.direction = Some(parse_vec3("--force", f)?);
+        }
+        Ok((predicted, hit))
     }
 
     /// Solves the shape for `count` modes.
@@ -384,6 +429,108 @@ pub struct ModesReport {
     pub material: String,
     /// Hit point, m, and force direction used.
     pub hit_m: [f64; 3],
+    /// `--solver neural --bands`: the predicted band representation at the strike.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bands: Option<Vec<BandReport>>,
+}
+
+/// One predicted band at the strike (`modes --solver neural --bands`).
+#[derive(Debug, Serialize)]
+pub struct BandReport {
+    /// Band index (0: lowest).
+    pub band: usize,
+    /// The band's predicted mode, Hz, for this material and size (`None`: predicted empty).
+    pub freq_hz: Option<f64>,
+    /// Mask per unit force along x, y, z at the strike cell.
+    pub mask: [bool; 3],
+    /// Normalised log-amplitude per force direction (0 at -60 dB, 1 for the loudest).
+    pub log_amplitude: [f32; 3],
+}
+
+/// The `modes` report for the predictor's answer: the modes as FEM's report gives them (one
+/// per predicted band; no residuals, no DOFs), the `count` lowest or those below `fmax_hz`.
+pub fn neural_report(
+    object: &Object,
+    predicted: &crate::predictor::object::PredictedObject,
+    hit: &Hit,
+    count: Option<usize>,
+    fmax_hz: Option<f64>,
+    with_bands: bool,
+) -> ModesReport {
+    use crate::predictor::bands::{self, BANDS, DIRECTIONS};
+    let h = object.grid.voxel_size_m();
+    let mut voiced = predicted.voice(&object.material, h, hit);
+    if let Some(f) = fmax_hz {
+        voiced.retain(|m| m.natural_hz <= f);
+    }
+    voiced.truncate(count.unwrap_or(usize::MAX));
+    let bands = with_bands.then(|| {
+        let enc = predicted.prediction.to_encoding();
+        let c = bands::CELLS_PER_AXIS;
+        let cell = predicted
+            .strike_cell(hit.point_m, h)
+            .map(|q| q[0] + c * (q[1] + c * q[2]));
+        let box_voxel_m = h / predicted.box_per_voxel;
+        let scale = object.material.youngs_modulus_pa
+            / (object.material.density_kg_m3 * box_voxel_m * box_voxel_m);
+        (0..BANDS)
+            .map(|b| {
+                let at = |d: usize| cell.map(|i| (i * DIRECTIONS + d) * BANDS + b);
+                BandReport {
+                    band: b,
+                    freq_hz: enc.band_log_hz[b].map(|lf| {
+                        let l = bands::reference_eigenvalue(10f64.powf(lf as f64)) * scale;
+                        l.sqrt() / std::f64::consts::TAU
+                    }),
+                    mask: [0, 1, 2].map(|d| at(d).is_some_and(|i| enc.mask[i])),
+                    log_amplitude: [0, 1, 2].map(|d| at(d).map_or(0.0, |i| enc.log_amplitude[i])),
+                }
+            })
+            .collect()
+    });
+    ModesReport {
+        modes: voiced.iter().map(mode_report).collect(),
+        rigid_modes: 0,
+        components: ops::components(&object.grid).1,
+        voxels: object.grid.count(),
+        dofs: 0,
+        residuals: voiced.iter().map(|m| m.residual).collect(),
+        timings_ms: Timings {
+            assemble: 0.0,
+            solve: predicted.inference_ms,
+            setup: 0.0,
+            iterate: predicted.inference_ms,
+        },
+        grid: object.grid.dims(),
+        voxel_size_m: h,
+        element: "none",
+        solver: "neural",
+        material: object.material.name.clone(),
+        hit_m: hit.point_m,
+        bands,
+    }
+}
+
+fn mode_report(m: &crate::modal::VoicedMode) -> ModeReport {
+    match m.damped {
+        DampedMode::Oscillating {
+            freq_hz,
+            decay_per_s,
+        } => ModeReport {
+            freq_hz,
+            decay_per_s,
+            gain: m.gain,
+            natural_hz: m.natural_hz,
+            overdamped: false,
+        },
+        DampedMode::Overdamped { decay_per_s } => ModeReport {
+            freq_hz: 0.0,
+            decay_per_s,
+            gain: 0.0,
+            natural_hz: m.natural_hz,
+            overdamped: true,
+        },
+    }
 }
 
 /// Builds the report for a solved object.
@@ -392,28 +539,7 @@ pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesRepo
     let voiced = basis.voice(&object.material, h, hit)?;
     let sol = &basis.solution;
     Ok(ModesReport {
-        modes: voiced
-            .iter()
-            .map(|m| match m.damped {
-                DampedMode::Oscillating {
-                    freq_hz,
-                    decay_per_s,
-                } => ModeReport {
-                    freq_hz,
-                    decay_per_s,
-                    gain: m.gain,
-                    natural_hz: m.natural_hz,
-                    overdamped: false,
-                },
-                DampedMode::Overdamped { decay_per_s } => ModeReport {
-                    freq_hz: 0.0,
-                    decay_per_s,
-                    gain: 0.0,
-                    natural_hz: m.natural_hz,
-                    overdamped: true,
-                },
-            })
-            .collect(),
+        modes: voiced.iter().map(mode_report).collect(),
         rigid_modes: sol.rigid_modes,
         components: basis.components,
         voxels: object.grid.count(),
@@ -431,5 +557,6 @@ pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesRepo
         solver: sol.solver.name(),
         material: object.material.name.clone(),
         hit_m: hit.point_m,
+        bands: None,
     })
 }

@@ -160,6 +160,29 @@ pub fn components(grid: &VoxelGrid) -> (Vec<usize>, usize) {
     (label, count)
 }
 
+/// `grid` resampled so that its longest side is `side` voxels (at least 1), keeping its
+/// proportions: each new voxel takes the fill of the old voxel its centre falls in (nearest
+/// voxel centre; a partial voxel's sub-cell fills go with it). The voxel edge scales so the
+/// object keeps its size in metres. `None` when the object vanishes at that size (empty, or
+/// thinner than one new voxel everywhere).
+pub fn resampled(grid: &VoxelGrid, side: usize) -> Option<VoxelGrid> {
+    let dims = grid.dims();
+    let longest = dims.into_iter().max().unwrap_or(1).max(1);
+    let side = side.max(1);
+    let s = side as f64 / longest as f64;
+    let new_dims = dims.map(|d| ((d as f64 * s).round() as usize).clamp(1, side));
+    let mut out = VoxelGrid::new(new_dims, grid.voxel_size_m() / s).ok()?;
+    for z in 0..new_dims[2] {
+        for y in 0..new_dims[1] {
+            for x in 0..new_dims[0] {
+                let src = [x, y, z].map(|v| ((v as f64 + 0.5) / s).floor() as isize);
+                out.set_fill(x, y, z, grid.fill_at(src[0], src[1], src[2]));
+            }
+        }
+    }
+    (out.count() > 0).then_some(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
