@@ -1,5 +1,6 @@
 //! The neural predictor's cost on one core (issue 12): the network on a shape (resampled to
-//! the box, trunk, features back to the CPU) and one strike's decode (one cell's head).
+//! the box, trunk, features back to the CPU) and one strike's decode (the struck cell found, its head evaluated, the
+//! modal forces written: what the engine does per hit).
 //!
 //! `cargo bench --bench predictor` (criterion). Shapes: the plugin's default glass bowl
 //! (`bowl:d=16,wall=2`, resampled to 32) and a 32-voxel solid sphere; the shipped weights.
@@ -38,8 +39,9 @@ fn main() {
                 point_m: [0.37 * nx as f64 * h, 0.41 * ny as f64 * h, nz as f64 * h],
                 direction: None,
             };
+            let mut forces = vec![0.0; p.mode_count()];
             c.bench_function(&format!("strike decode {spec}"), |b| {
-                b.iter(|| p.strike(black_box(&hit), h))
+                b.iter(|| p.reference_forces_into(black_box(&hit), h, &mut forces))
             });
         }
     }

@@ -1,8 +1,8 @@
 //! The real-time engine: a wait-free audio side that strikes and voices solved objects, and a
 //! worker thread that solves shape edits.
 //!
-//! Where it sits: between the mode sources ([`crate::modal::ModeBasis`] from FEM; later the
-//! neural predictor) and the audio callback of the plugin, the standalone app or the CLI.
+//! Where it sits: between the mode sources ([`ObjectModes`]: a [`crate::modal::ModeBasis`] from
+//! FEM or a [`crate::predictor::object::PredictedObject`] from the neural predictor) and the audio callback of the plugin, the standalone app or the CLI.
 //!
 //! ```text
 //! editor / CLI ──ObjectRequest──> EngineControl ─mailbox (newest wins)─> worker thread
@@ -29,10 +29,11 @@ pub mod voicing;
 mod worker;
 
 pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
-pub use object::SolvedObject;
+pub use object::{ObjectModes, SolvedObject};
 pub use solvers::{
-    coarse_grid, interactive_solvers, predicted_cold_ms, CarriedRitzSolver, CoarseFemSolver,
-    IncrementalFemSolver, CARRIED_EXPECTED_ERROR, COARSE_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS,
+    coarse_grid, interactive_solvers, predicted_cold_ms, AnswerSwitch, Answers, CarriedRitzSolver,
+    CoarseFemSolver, IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR,
+    COARSE_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS,
 };
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{

@@ -174,6 +174,9 @@ pub enum ModalError {
     /// An answer that refines an earlier one was asked for with no comparable earlier one.
     #[error("no earlier solution of a similar shape to start from")]
     NoPrevious,
+    /// The neural predictor could not answer.
+    #[error("{0}")]
+    Predictor(String),
 }
 
 /// A strike: where and in which direction.

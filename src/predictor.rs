@@ -68,6 +68,14 @@ impl Predictor {
         Ok(Self { model, device })
     }
 
+    /// Wraps a network in memory (tests, and scoring a checkpoint without a file).
+    pub fn from_model(model: ModeNet) -> Self {
+        Self {
+            model,
+            device: Device::flex(),
+        }
+    }
+
     /// The weights shipped in the repository (`assets/predictor/modenet.bpk`, compiled in;
     /// `assets/predictor/README.md` says how they were trained).
     pub fn shipped() -> Result<Self, PredictorError> {
@@ -108,13 +116,13 @@ impl Predictor {
         let prediction = predict_batch(&self.model, &[input], &self.device)
             .pop()
             .expect("one shape in, one answer out");
-        Ok(PredictedObject {
+        Ok(PredictedObject::new(
             prediction,
-            grid_dims: grid.dims(),
-            box_per_voxel: object::BOX_SIDE as f64 / longest as f64,
-            volume_voxels: grid.volume_voxels(),
-            inference_ms: t0.elapsed().as_secs_f64() * 1e3,
-        })
+            grid.dims(),
+            object::BOX_SIDE as f64 / longest as f64,
+            grid.volume_voxels(),
+            t0.elapsed().as_secs_f64() * 1e3,
+        ))
     }
 }
 
@@ -142,7 +150,7 @@ pub struct Prediction {
 
 impl Prediction {
     /// The head's outputs at one cell: mask logits, then log-amplitudes.
-    fn cell_outputs(&self, cell: usize) -> [f32; OUT_CHANNELS] {
+    pub(crate) fn cell_outputs(&self, cell: usize) -> [f32; OUT_CHANNELS] {
         let cells = CELLS_PER_AXIS.pow(3);
         let h = &self.head;
         let mut out = [0.0f32; OUT_CHANNELS];
@@ -292,5 +300,70 @@ mod tests {
             assert_eq!(p.strike([3, 5, 2], dir), enc.strike([3, 5, 2], dir));
         }
         assert!(p.strike([15, 15, 15], [0.0, 0.0, 1.0]).is_empty());
+    }
+
+    #[test]
+    fn predicted_objects_scale_and_voice_like_fem_ones() {
+        // A 16-voxel-long bar is resampled 2x to fill the box: its eigenvalues (its own voxel
+        // edge as the unit) are the box's times 4 (lambda ~ h^-2, Deep-Modal eq. 11); the
+        // forces follow the network's relative gains times omega (gain = force / omega), the
+        // loudest at the free-end level 2 / sqrt(volume). Any weights will do: this checks the
+        // mapping, not the network.
+        let predictor =
+            Predictor::from_model(ModeNet::new(network::Widths::SHIPPED, &Device::flex()));
+        let grid = VoxelGrid::from_fn([16, 4, 3], 0.01, |_, _, _| true).unwrap();
+        let p = predictor.predict(&grid).unwrap();
+        assert_eq!(p.box_per_voxel, 2.0);
+        let box_eigs: Vec<f64> = p
+            .prediction
+            .band_log_hz
+            .iter()
+            .flatten()
+            .map(|lf| bands::reference_eigenvalue(10f64.powf(*lf as f64)))
+            .collect();
+        assert_eq!(p.eigenvalues.len(), box_eigs.len());
+        for (a, b) in p.eigenvalues.iter().zip(&box_eigs) {
+            assert!((a / b - 4.0).abs() < 1e-12);
+        }
+        let hit = crate::modal::Hit {
+            point_m: [0.005, 0.02, 0.03],
+            direction: Some([0.0, 0.0, 1.0]),
+        };
+        let mut forces = vec![0.0; p.mode_count()];
+        p.reference_forces_into(&hit, 0.01, &mut forces);
+        let cell = p.strike_cell(hit.point_m, 0.01).unwrap();
+        // x 0.5 box cells, y 2.0 (a tie: the lower), z 3.0: past the top cell (2).
+        assert_eq!(cell, [0, 1, 2]);
+        let modes = p.prediction.strike(cell, [0.0, 0.0, 1.0]);
+        if let Some(loud) = modes.iter().max_by(|a, b| a.gain.total_cmp(&b.gain)) {
+            let bands_held: Vec<usize> = p
+                .prediction
+                .band_log_hz
+                .iter()
+                .enumerate()
+                .filter_map(|(b, f)| f.map(|_| b))
+                .collect();
+            let at = |band: usize| bands_held.iter().position(|&b| b == band).unwrap();
+            let l = at(loud.band);
+            let level = 2.0 / grid.volume_voxels().sqrt();
+            assert!(
+                (forces[l] / level - 1.0).abs() < 1e-9,
+                "{} vs {level}",
+                forces[l]
+            );
+            for m in &modes {
+                let i = at(m.band);
+                let want = m.gain * level * (p.eigenvalues[i] / p.eigenvalues[l]).sqrt();
+                assert!((forces[i] - want).abs() <= 1e-9 * level, "band {}", m.band);
+            }
+        }
+        // Voiced like FEM: the material's frequencies, finite gains.
+        let glass = crate::material::Material::preset("glass").unwrap();
+        for m in p.voice(&glass, 0.01, &hit) {
+            assert!(m.gain.is_finite() && m.natural_hz > 0.0);
+        }
+        assert!(predictor
+            .predict(&VoxelGrid::new([4, 4, 4], 0.01).unwrap())
+            .is_err());
     }
 }

@@ -24,12 +24,14 @@ use keymap::KeyMap;
 use materials::MaterialTable;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    AudioEngine, Engine, EngineConfig, EngineControl, Event, ObjectRequest, Pitch, TimedEvent,
+    AnswerSwitch, Answers, AudioEngine, Engine, EngineConfig, EngineControl, Event, ObjectRequest,
+    Pitch, TimedEvent,
 };
 use modalforge::fem::ElementKind;
+use modalforge::predictor::Predictor;
 use nice_plug::prelude::*;
 use nice_plug_egui::EguiEditorState;
-use params::{ElementChoice, ModalForgeParams, SolverChoice};
+use params::{AnswerChoice, ElementChoice, ModalForgeParams, SolverChoice};
 use std::num::NonZeroU32;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
@@ -54,6 +56,11 @@ pub struct ModalForge {
     mono: Vec<f32>,
     link: Arc<EditorLink>,
     editor_state: Arc<EguiEditorState>,
+    /// The neural predictor (the shipped weights); `None` when they cannot be loaded, and FEM
+    /// answers alone.
+    predictor: Option<Arc<Predictor>>,
+    /// The Answers parameter as the worker's solvers read it.
+    answers: AnswerSwitch,
 }
 
 impl Default for ModalForge {
@@ -74,6 +81,14 @@ impl Default for ModalForge {
                 ),
                 1.0,
             ),
+            predictor: match Predictor::shipped() {
+                Ok(p) => Some(Arc::new(p)),
+                Err(e) => {
+                    nice_log!("{e}");
+                    None
+                }
+            },
+            answers: AnswerSwitch::default(),
         }
     }
 }
@@ -111,10 +126,17 @@ pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Optio
 pub fn solve_source(
     params: Arc<ModalForgeParams>,
     table: Arc<MaterialTable>,
+    answers: AnswerSwitch,
 ) -> modalforge::engine::RequestSource {
-    let mut last: Option<(u64, ElementKind, u64, SolverKind, usize)> = None;
+    let mut last: Option<(u64, ElementKind, u64, SolverKind, usize, Answers)> = None;
     Box::new(move || {
         let r = object_request(&params, &table)?;
+        let wanted = match params.answers.value() {
+            AnswerChoice::Auto => Answers::Auto,
+            AnswerChoice::FemOnly => Answers::FemOnly,
+            AnswerChoice::PredictorOnly => Answers::PredictorOnly,
+        };
+        answers.set(wanted);
         let count = match r.options.count {
             ModeCount::First(k) => k,
             ModeCount::Below(_) => 0,
@@ -125,6 +147,7 @@ pub fn solve_source(
             r.poisson_ratio.to_bits(),
             r.solver,
             count,
+            wanted,
         );
         if last == Some(key) {
             return None;
@@ -190,11 +213,15 @@ impl Plugin for ModalForge {
             rate,
             EngineConfig::default(),
             voicing,
-            modalforge::engine::interactive_solvers(),
+            modalforge::engine::interactive_solvers(self.predictor.clone(), self.answers.clone()),
         );
         match started {
             Ok((audio, control)) => {
-                control.set_request_source(solve_source(self.params.clone(), self.table.clone()));
+                control.set_request_source(solve_source(
+                    self.params.clone(),
+                    self.table.clone(),
+                    self.answers.clone(),
+                ));
                 // The first object (a fraction of a second for the default shape) is there
                 // before the first note; a slow one keeps solving in the background.
                 control.wait_for_solves(1, FIRST_SOLVE_WAIT);

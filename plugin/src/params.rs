@@ -57,6 +57,23 @@ pub enum SolverChoice {
     Lobpcg,
 }
 
+/// Which answers a shape edit gets: the neural predictor's instant one and FEM's exact one.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AnswerChoice {
+    /// The predictor answers at once, FEM replaces it when ready (the default).
+    #[id = "auto"]
+    #[name = "Predictor, then FEM"]
+    Auto,
+    /// FEM only (carried and coarse answers included).
+    #[id = "fem"]
+    #[name = "FEM only"]
+    FemOnly,
+    /// The predictor only: no FEM solve.
+    #[id = "neural"]
+    #[name = "Predictor only"]
+    PredictorOnly,
+}
+
 /// Finite element.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ElementChoice {
@@ -180,6 +197,10 @@ pub struct ModalForgeParams {
     /// Eigensolver (a change re-solves).
     #[id = "solver"]
     pub solver: EnumParam<SolverChoice>,
+    /// Which answers an edit gets (a change re-solves). Without loadable predictor weights,
+    /// FEM answers whatever this says.
+    #[id = "answer"]
+    pub answers: EnumParam<AnswerChoice>,
     /// Element (a change re-solves).
     #[id = "elem"]
     pub element: EnumParam<ElementChoice>,
@@ -256,6 +277,7 @@ impl Default for ModalForgeParams {
             note_off_mute: BoolParam::new("Note-off Mute", false),
             mute_decay: float("Mute Decay", 40.0, skewed(1.0, 500.0), " /s", 1),
             solver: EnumParam::new("Solver", SolverChoice::Auto),
+            answers: EnumParam::new("Answers", AnswerChoice::Auto),
             element: EnumParam::new("Element", ElementChoice::Hex8i),
             modes: IntParam::new("Modes", 60, IntRange::Linear { min: 8, max: 200 }),
         }

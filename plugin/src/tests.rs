@@ -97,7 +97,11 @@ fn presets_and_custom_knobs_reach_the_voicing() {
 fn the_solve_source_asks_once_per_change() {
     let params = Arc::new(ModalForgeParams::default());
     let table = Arc::new(MaterialTable::new());
-    let mut source = solve_source(params.clone(), table);
+    let mut source = solve_source(
+        params.clone(),
+        table,
+        modalforge::engine::AnswerSwitch::default(),
+    );
     let first = source().expect("the first poll asks for the object");
     assert_eq!(first.grid.dims(), Sculpt::default().dims);
     assert!(source().is_none(), "nothing changed");

@@ -140,15 +140,15 @@ impl AudioEngine {
     pub fn fundamental_hz(&self) -> Option<f64> {
         let obj = self.object.as_ref()?;
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let partials = obj
-            .basis
-            .solution
-            .eigenvalues
-            .iter()
-            .zip(&obj.forces)
-            .filter_map(|(&l, &force)| {
-                tune(&self.voicing, l, h, 0.0, self.sample_rate_hz).map(|(f, _)| (f, force * force))
-            });
+        let partials =
+            obj.basis
+                .eigenvalues()
+                .iter()
+                .zip(&obj.forces)
+                .filter_map(|(&l, &force)| {
+                    tune(&self.voicing, l, h, 0.0, self.sample_rate_hz)
+                        .map(|(f, _)| (f, force * force))
+                });
         super::pitch::cluster_pitch_hz(partials)
     }
 
@@ -254,8 +254,7 @@ impl AudioEngine {
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
         let sum: f64 = obj
             .basis
-            .solution
-            .eigenvalues
+            .eigenvalues()
             .iter()
             .zip(&obj.forces)
             .filter_map(|(&l, &force)| {
@@ -360,7 +359,7 @@ impl AudioEngine {
         let h = self.voicing.voxel_size_m(obj.extent, pitch);
         self.struck.clear();
         let mut loudest: f64 = 0.0;
-        for (i, &lambda) in obj.basis.solution.eigenvalues.iter().enumerate() {
+        for (i, &lambda) in obj.basis.eigenvalues().iter().enumerate() {
             if self.struck.len() == self.struck.capacity() {
                 break;
             }

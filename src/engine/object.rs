@@ -6,14 +6,75 @@
 //! freed on the worker.
 
 use super::voicing::HitPoint;
-use crate::modal::{HitError, ModeBasis};
+use crate::modal::{Hit, HitError, ModeBasis};
+use crate::predictor::object::PredictedObject;
 use std::sync::Arc;
+
+/// A shape's modes from either source: what the audio side strikes and the editor's spectrum
+/// draws. Eigenvalues and forces are in reference units with the shape's voxel edge as the
+/// unit, whichever solver made them.
+#[derive(Debug)]
+pub enum ObjectModes {
+    /// Finite elements: exact to the solver tolerance.
+    Fem(ModeBasis),
+    /// The neural predictor: one mode per predicted band, in milliseconds.
+    Predicted(PredictedObject),
+}
+
+impl ObjectModes {
+    /// Reference-unit eigenvalues, ascending.
+    pub fn eigenvalues(&self) -> &[f64] {
+        match self {
+            ObjectModes::Fem(b) => &b.solution.eigenvalues,
+            ObjectModes::Predicted(p) => &p.eigenvalues,
+        }
+    }
+
+    /// Modes held.
+    pub fn mode_count(&self) -> usize {
+        self.eigenvalues().len()
+    }
+
+    /// The shape's grid dimensions, voxels.
+    pub fn grid_dims(&self) -> [usize; 3] {
+        match self {
+            ObjectModes::Fem(b) => b.grid_dims(),
+            ObjectModes::Predicted(p) => p.grid_dims,
+        }
+    }
+
+    /// Reference-unit modal forces at `hit`, one per mode, into `out`
+    /// ([`ModeBasis::reference_forces_into`], [`PredictedObject::reference_forces_into`]).
+    /// Never allocates.
+    pub fn reference_forces_into(
+        &self,
+        hit: &Hit,
+        voxel_size_m: f64,
+        out: &mut [f64],
+    ) -> Result<(), HitError> {
+        match self {
+            ObjectModes::Fem(b) => b.reference_forces_into(hit, voxel_size_m, out),
+            ObjectModes::Predicted(p) => {
+                p.reference_forces_into(hit, voxel_size_m, out);
+                Ok(())
+            }
+        }
+    }
+
+    /// The FEM basis, when FEM made these modes.
+    pub fn fem(&self) -> Option<&ModeBasis> {
+        match self {
+            ObjectModes::Fem(b) => Some(b),
+            ObjectModes::Predicted(_) => None,
+        }
+    }
+}
 
 /// A shape's modes ready to be struck.
 pub struct SolvedObject {
     /// The solved shape (reference units), shared with the editor's spectrum view (the last
     /// reference is dropped on the worker: retired objects travel back through a ring).
-    pub basis: Arc<ModeBasis>,
+    pub basis: Arc<ObjectModes>,
     /// Increases with every solved edit; modes keep it so a voice knows which object they are.
     pub generation: u64,
     /// Name of the solver that produced it.
@@ -30,7 +91,7 @@ pub struct SolvedObject {
 impl SolvedObject {
     /// Wraps a solved basis. Allocates.
     pub fn new(
-        basis: Arc<ModeBasis>,
+        basis: Arc<ObjectModes>,
         generation: u64,
         solver: &'static str,
         solve_ms: f64,

@@ -16,10 +16,13 @@
 //! All three share the last exact basis (a coarse or carried answer never becomes the start of
 //! another).
 
+use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::eigen::ModeCount;
 use crate::modal::{ModalError, ModeBasis, WARM_MIN_OVERLAP};
+use crate::predictor::Predictor;
 use crate::shape::{ops, VoxelGrid};
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// An exact solve predicted to take longer than this (ms) gets a coarse answer first.
@@ -131,6 +134,7 @@ fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
 /// The exact FEM answer; it keeps the last one for the chain's faster answers to start from.
 pub struct IncrementalFemSolver {
     last: Shared,
+    answers: AnswerSwitch,
 }
 
 impl IncrementalFemSolver {
@@ -138,6 +142,7 @@ impl IncrementalFemSolver {
     pub fn new() -> Self {
         IncrementalFemSolver {
             last: Arc::new(Mutex::new(None)),
+            answers: AnswerSwitch::default(),
         }
     }
 }
@@ -157,7 +162,11 @@ impl ModeSolver for IncrementalFemSolver {
         "fem"
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+    fn applies(&self, _r: &ObjectRequest) -> bool {
+        self.answers.get() != Answers::PredictorOnly
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
         // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
         // iterations, but they cost about as much as the whole Lanczos solve on the same
         // factor: measured slower on most objects of `cargo bench --bench interactive`. The
@@ -165,7 +174,7 @@ impl ModeSolver for IncrementalFemSolver {
         // `CarriedRitzSolver`.
         let basis = ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?;
         *lock(&self.last) = Some(Arc::new(basis.clone()));
-        Ok(basis)
+        Ok(ObjectModes::Fem(basis))
     }
 }
 
@@ -179,6 +188,7 @@ fn count_of(r: &ObjectRequest) -> usize {
 /// The progressive first answer: the object at half resolution (see the module docs).
 pub struct CoarseFemSolver {
     last: Shared,
+    answers: AnswerSwitch,
 }
 
 impl ModeSolver for CoarseFemSolver {
@@ -187,6 +197,9 @@ impl ModeSolver for CoarseFemSolver {
     }
 
     fn applies(&self, r: &ObjectRequest) -> bool {
+        if self.answers.get() == Answers::PredictorOnly {
+            return false;
+        }
         if let Some(p) = lock(&self.last).as_ref() {
             if warm_candidate(p, r) {
                 return false;
@@ -200,9 +213,10 @@ impl ModeSolver for CoarseFemSolver {
         Some(COARSE_EXPECTED_ERROR)
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
         let grid = coarse_grid(&r.grid).ok_or(ModalError::NoCoarseGrid)?;
         ModeBasis::solve(&grid, r.element, r.poisson_ratio, r.solver, &r.options)
+            .map(ObjectModes::Fem)
     }
 }
 
@@ -210,6 +224,7 @@ impl ModeSolver for CoarseFemSolver {
 /// re-balanced by Rayleigh-Ritz ([`ModeBasis::carried_ritz`]), while the exact solve runs.
 pub struct CarriedRitzSolver {
     last: Shared,
+    answers: AnswerSwitch,
 }
 
 impl ModeSolver for CarriedRitzSolver {
@@ -218,32 +233,125 @@ impl ModeSolver for CarriedRitzSolver {
     }
 
     fn applies(&self, r: &ObjectRequest) -> bool {
-        matches!(r.options.count, ModeCount::First(_))
-            && lock(&self.last)
-                .as_ref()
-                .is_some_and(|p| warm_candidate(p, r) && p.shape_hash != r.grid.shape_hash())
+        self.answers.get() != Answers::PredictorOnly && carried_applies(&self.last, r)
     }
 
     fn expected_error(&self) -> Option<f64> {
         Some(CARRIED_EXPECTED_ERROR)
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
         let previous = lock(&self.last).clone().ok_or(ModalError::NoPrevious)?;
         ModeBasis::carried_ritz(&r.grid, r.element, r.poisson_ratio, count_of(r), &previous)
             .unwrap_or(Err(ModalError::NoPrevious))
+            .map(ObjectModes::Fem)
     }
 }
 
-/// The plugin's chain: [`CoarseFemSolver`] (slow cold solves), [`CarriedRitzSolver`] (brush
-/// strokes), then [`IncrementalFemSolver`] (exact), sharing the last exact answer.
-pub fn interactive_solvers() -> Vec<Box<dyn ModeSolver>> {
-    let exact = IncrementalFemSolver::new();
-    let coarse = CoarseFemSolver {
-        last: exact.last.clone(),
+/// Whether the carried answer serves `r`: a stroke (a changed shape) on the last exact answer.
+fn carried_applies(last: &Shared, r: &ObjectRequest) -> bool {
+    matches!(r.options.count, ModeCount::First(_))
+        && lock(last)
+            .as_ref()
+            .is_some_and(|p| warm_candidate(p, r) && p.shape_hash != r.grid.shape_hash())
+}
+
+/// Which answers the chain gives ([`AnswerSwitch`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Answers {
+    /// The predictor's instant answer (or a carried or coarse one), then the exact FEM answer.
+    Auto,
+    /// FEM only: carried or coarse answers, then the exact one.
+    FemOnly,
+    /// The predictor only (no FEM solve at all).
+    PredictorOnly,
+}
+
+/// The chain's [`Answers`] setting, shared with whoever changes it (the plugin's parameter):
+/// the solvers read it in [`ModeSolver::applies`], so it takes effect from the next edit.
+#[derive(Clone, Debug, Default)]
+pub struct AnswerSwitch(Arc<AtomicU8>);
+
+impl AnswerSwitch {
+    /// Sets the answers the chain gives.
+    pub fn set(&self, answers: Answers) {
+        self.0.store(answers as u8, Ordering::Relaxed);
+    }
+
+    /// The current setting.
+    pub fn get(&self) -> Answers {
+        match self.0.load(Ordering::Relaxed) {
+            1 => Answers::FemOnly,
+            2 => Answers::PredictorOnly,
+            _ => Answers::Auto,
+        }
+    }
+}
+
+/// Typical frequency error of the predictor's answer, for the status line: the held-out median
+/// pitch error of the shipped weights (`modalforge predictor eval`; see
+/// `assets/predictor/README.md`), as a ratio.
+pub const NEURAL_EXPECTED_ERROR: f64 = 0.02;
+
+/// The neural predictor's answer (issue 12): milliseconds for any shape in the 32^3 box. It
+/// answers an edit the carried answer does not serve (a new shape, a large edit, the first
+/// object); the exact answer replaces it.
+pub struct NeuralSolver {
+    predictor: Arc<Predictor>,
+    last: Shared,
+    answers: AnswerSwitch,
+}
+
+impl ModeSolver for NeuralSolver {
+    fn name(&self) -> &'static str {
+        "neural"
+    }
+
+    fn applies(&self, r: &ObjectRequest) -> bool {
+        match self.answers.get() {
+            Answers::FemOnly => false,
+            Answers::PredictorOnly => true,
+            Answers::Auto => !carried_applies(&self.last, r),
+        }
+    }
+
+    fn expected_error(&self) -> Option<f64> {
+        Some(NEURAL_EXPECTED_ERROR)
+    }
+
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
+        self.predictor
+            .predict(&r.grid)
+            .map(ObjectModes::Predicted)
+            .map_err(|e| ModalError::Predictor(e.to_string()))
+    }
+}
+
+/// The plugin's chain, sharing the last exact answer: [`NeuralSolver`] when a predictor is
+/// given (else [`CoarseFemSolver`] for slow cold solves), [`CarriedRitzSolver`] (brush
+/// strokes), then [`IncrementalFemSolver`] (exact). `answers` selects among them at run time.
+pub fn interactive_solvers(
+    predictor: Option<Arc<Predictor>>,
+    answers: AnswerSwitch,
+) -> Vec<Box<dyn ModeSolver>> {
+    let exact = IncrementalFemSolver {
+        last: Arc::new(Mutex::new(None)),
+        answers: answers.clone(),
+    };
+    let first: Box<dyn ModeSolver> = match predictor {
+        Some(predictor) => Box::new(NeuralSolver {
+            predictor,
+            last: exact.last.clone(),
+            answers: answers.clone(),
+        }),
+        None => Box::new(CoarseFemSolver {
+            last: exact.last.clone(),
+            answers: answers.clone(),
+        }),
     };
     let carried = CarriedRitzSolver {
         last: exact.last.clone(),
+        answers,
     };
-    vec![Box::new(coarse), Box::new(carried), Box::new(exact)]
+    vec![first, Box::new(carried), Box::new(exact)]
 }

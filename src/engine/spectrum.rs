@@ -8,8 +8,9 @@
 //! the mallet's modal factor), so the lines are what the next velocity-1 strike at the object's
 //! own size plays.
 
+use super::object::ObjectModes;
 use super::voicing::{tune, Voicing};
-use crate::modal::{HitError, ModeBasis};
+use crate::modal::HitError;
 use crate::synth::excitation::Excitation;
 use num_complex::Complex64;
 use std::f64::consts::TAU;
@@ -38,7 +39,7 @@ impl SpectrumLine {
 /// The playable modes of `basis` under `voicing` at the object's own size, struck at the
 /// voicing's hit point with its mallet, in basis order.
 pub fn spectrum(
-    basis: &ModeBasis,
+    basis: &ObjectModes,
     voicing: &Voicing,
     sample_rate_hz: f64,
 ) -> Result<Vec<SpectrumLine>, HitError> {
@@ -54,8 +55,7 @@ pub fn spectrum(
     };
     let h = voicing.voxel_size_m(extent, 1.0);
     Ok(basis
-        .solution
-        .eigenvalues
+        .eigenvalues()
         .iter()
         .zip(&forces)
         .enumerate()

@@ -84,7 +84,8 @@ fn a_strike_sounds_like_the_offline_voicing() {
     let (mut audio, _control) = ready(EngineConfig::default(), voicing, bar(24));
     let out = render(&mut audio, 9600, &[strike(60, 1.0)]);
 
-    let basis = FemSolver.solve(&request(bar(24), 30)).unwrap();
+    let modes = FemSolver.solve(&request(bar(24), 30)).unwrap();
+    let basis = modes.fem().unwrap();
     let material = Material::preset("steel").unwrap();
     let h = voicing.size_m / 24.0;
     let dims = basis.grid_dims();
@@ -308,7 +309,7 @@ impl ModeSolver for Slow {
     fn name(&self) -> &'static str {
         "slow"
     }
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
         self.calls.fetch_add(1, Ordering::SeqCst);
         std::thread::sleep(Duration::from_millis(300));
         FemSolver.solve(r)
@@ -408,7 +409,12 @@ fn the_spectrum_view_lists_what_the_offline_voicing_plays() {
         point_m: [0, 1, 2].map(|a| voicing.hit.position[a] * dims[a] as f64 * h),
         direction: None,
     };
-    let set = latest.basis.mode_set(&material, h, &hit).unwrap();
+    let set = latest
+        .basis
+        .fem()
+        .unwrap()
+        .mode_set(&material, h, &hit)
+        .unwrap();
     let below_nyquist = set.freq_hz().iter().filter(|&&f| f < FS / 2.0).count();
     assert!(lines.len() >= 10, "{} lines", lines.len());
     assert_eq!(lines.len(), below_nyquist);
@@ -468,8 +474,13 @@ fn coarse_grid_halves_thick_objects_and_refuses_thin_walls() {
 fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
     // The interactive chain on a stroke: the carried answer is delivered first, within its
     // stated error of the exact one, and the exact answer (solved cold) replaces it.
-    let (mut audio, control) =
-        Engine::start(FS, EngineConfig::default(), steel(), interactive_solvers()).unwrap();
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        interactive_solvers(None, AnswerSwitch::default()),
+    )
+    .unwrap();
     let grid = thick_box(10);
     control.request(request(grid.clone(), 20));
     assert!(control.wait_idle(Duration::from_secs(60)));
@@ -492,7 +503,7 @@ fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
         ElementKind::Hex8Incompatible,
         Material::preset("steel").unwrap().poisson_ratio,
         20,
-        &FemSolver.solve(&request(grid, 20)).unwrap(),
+        FemSolver.solve(&request(grid, 20)).unwrap().fem().unwrap(),
     )
     .unwrap()
     .unwrap();
@@ -500,7 +511,7 @@ fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
         .solution
         .eigenvalues
         .iter()
-        .zip(&exact.basis.solution.eigenvalues)
+        .zip(exact.basis.eigenvalues())
     {
         let err = (c.sqrt() - e.sqrt()).abs() / e.sqrt();
         assert!(err < CARRIED_EXPECTED_ERROR, "{err:.1e}");
@@ -511,8 +522,51 @@ fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
 fn exact_grid(latest: &crate::engine::LatestObject) -> VoxelGrid {
     let dims = latest.basis.grid_dims();
     let mut g = VoxelGrid::new(dims, 0.01).unwrap();
-    for v in &latest.basis.model.voxels {
+    for v in &latest.basis.fem().unwrap().model.voxels {
         g.set(v[0], v[1], v[2], true);
     }
     g
+}
+
+#[test]
+fn the_predictor_answers_first_and_the_answers_switch_selects() {
+    // Auto: a new object gets the neural answer, then the exact one; FEM only: no neural
+    // answer; Predictor only: no FEM solve, and the predicted modes reach the audio side and
+    // play finite audio. Any weights exercise the chain (a randomly initialised network).
+    use crate::predictor::network::{ModeNet, Widths};
+    use crate::predictor::Predictor;
+    let predictor =
+        Predictor::from_model(ModeNet::new(Widths::SHIPPED, &burn::tensor::Device::flex()));
+    let answers = AnswerSwitch::default();
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        interactive_solvers(Some(std::sync::Arc::new(predictor)), answers.clone()),
+    )
+    .unwrap();
+    control.request(request(thick_box(8), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let st = control.status();
+    assert_eq!(st.solves, 2, "neural, then exact: {st:?}");
+    assert_eq!(st.last.as_ref().unwrap().solver, "fem");
+    answers.set(Answers::FemOnly);
+    control.request(request(bar(20), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let fem_only = control.status();
+    assert_eq!(fem_only.solves, st.solves + 1, "{fem_only:?}");
+    answers.set(Answers::PredictorOnly);
+    control.request(request(thick_box(10), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let neural = control.status();
+    assert_eq!(neural.solves, fem_only.solves + 1, "{neural:?}");
+    assert_eq!(neural.last.as_ref().unwrap().solver, "neural");
+    assert_eq!(
+        neural.playing.as_ref().unwrap().expected_error,
+        Some(NEURAL_EXPECTED_ERROR)
+    );
+    let latest = control.latest_object().unwrap();
+    assert!(latest.basis.fem().is_none());
+    let out = render(&mut audio, 4800, &[strike(60, 1.0)]);
+    assert!(out.iter().all(|s| s.is_finite()));
 }

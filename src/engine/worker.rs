@@ -6,16 +6,17 @@
 //! from an `rtrb` ring and pushes the replaced ones back through a second ring, freed here).
 //! Requests that arrive during a solve coalesce: only the newest waiting one is solved next.
 //! Solvers form a chain ([`ModeSolver`]): fast approximate ones (a coarse grid, the carried
-//! modes of the last exact answer: [`super::solvers`]; the neural predictor, later) answer
+//! modes of the last exact answer, the neural predictor: [`super::solvers`]) answer
 //! first and the exact FEM solve replaces them, unless a newer request has arrived.
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
-use super::object::SolvedObject;
+use super::object::{ObjectModes, SolvedObject};
 use super::EngineStats;
 use crate::eigen::{EigenOptions, SolverKind};
 use crate::fem::ElementKind;
 use crate::modal::{ModalError, ModeBasis};
+
 use crate::shape::VoxelGrid;
 use rtrb::{Consumer, Producer, PushError};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
@@ -46,7 +47,7 @@ pub trait ModeSolver: Send {
     /// Short name for the status line ("fem", "neural").
     fn name(&self) -> &'static str;
     /// Solves the request.
-    fn solve(&mut self, request: &ObjectRequest) -> Result<ModeBasis, ModalError>;
+    fn solve(&mut self, request: &ObjectRequest) -> Result<ObjectModes, ModalError>;
     /// Whether this solver answers `request` at all (a progressive first answer is skipped
     /// where the exact one is fast anyway). Default: always.
     fn applies(&self, _request: &ObjectRequest) -> bool {
@@ -67,8 +68,9 @@ impl ModeSolver for FemSolver {
         "fem"
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ModeBasis, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
         ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)
+            .map(ObjectModes::Fem)
     }
 }
 
@@ -141,7 +143,7 @@ pub struct LatestObject {
     /// Generation (as in [`SolveReport::generation`]).
     pub generation: u64,
     /// The modes in reference units (see [`super::spectrum`]).
-    pub basis: Arc<ModeBasis>,
+    pub basis: Arc<ObjectModes>,
 }
 
 /// Locks, recovering from a poisoned lock (a panicking solver must not wedge the editor).
@@ -341,7 +343,7 @@ impl Worker {
                 Ok(basis) => {
                     self.generation += 1;
                     let modes = basis.mode_count();
-                    let warm_start = basis.solution.warm_start;
+                    let warm_start = basis.fem().is_some_and(|b| b.solution.warm_start);
                     let basis = Arc::new(basis);
                     *lock(&self.shared.latest) = Some(LatestObject {
                         generation: self.generation,

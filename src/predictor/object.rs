@@ -23,7 +23,8 @@
 //!   nearest struck cell when it falls outside the surface); a strike without a force
 //!   direction pushes towards the object's centre.
 
-use super::bands::{self, BandMode, CELLS_PER_AXIS, INPUT_SIDE};
+use super::bands::{self, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use super::network::MASK_CHANNELS;
 use super::Prediction;
 use crate::material::DampedMode;
 use crate::material::Material;
@@ -42,15 +43,56 @@ pub struct PredictedObject {
     pub volume_voxels: f64,
     /// Time the network took, ms.
     pub inference_ms: f64,
+    /// One mode per band predicted to hold one, ascending: reference-unit eigenvalues with the
+    /// shape's own voxel edge as the unit (as [`crate::modal::ModeBasis`] keeps them).
+    pub eigenvalues: Vec<f64>,
+    /// The band of each mode.
+    bands: Vec<usize>,
 }
 
-/// Impulse amplitude of a mass-normalised mode at a free end, times `sqrt(m)`: the level
-/// estimate of the module docs.
+/// Value of a mass-normalised mode at a free end, times `sqrt(m)`: the level estimate of the
+/// module docs.
 const FREE_END_MODE_VALUE: f64 = 2.0;
 
 impl PredictedObject {
+    /// Wraps the network's answer for a shape of `grid_dims` voxels that was resampled by
+    /// `box_per_voxel` to fill the box.
+    pub fn new(
+        prediction: Prediction,
+        grid_dims: [usize; 3],
+        box_per_voxel: f64,
+        volume_voxels: f64,
+        inference_ms: f64,
+    ) -> Self {
+        // A box voxel is 1 / box_per_voxel of the shape's: lambda scales with h^-2.
+        let to_shape = box_per_voxel * box_per_voxel;
+        let (bands, eigenvalues): (Vec<usize>, Vec<f64>) = prediction
+            .band_log_hz
+            .iter()
+            .enumerate()
+            .filter_map(|(b, lf)| {
+                let hz = 10f64.powf((*lf)? as f64);
+                Some((b, bands::reference_eigenvalue(hz) * to_shape))
+            })
+            .unzip();
+        Self {
+            prediction,
+            grid_dims,
+            box_per_voxel,
+            volume_voxels,
+            inference_ms,
+            eigenvalues,
+            bands,
+        }
+    }
+
+    /// Number of predicted modes.
+    pub fn mode_count(&self) -> usize {
+        self.eigenvalues.len()
+    }
+
     /// The strike cell for a hit at `point_m` on a shape with voxel edge `voxel_size_m`: the
-    /// cell it falls in, or the nearest struck cell.
+    /// cell it falls in, or the nearest struck cell. Never allocates.
     pub fn strike_cell(&self, point_m: [f64; 3], voxel_size_m: f64) -> Option<[usize; 3]> {
         let c = CELLS_PER_AXIS;
         let want = point_m.map(|p| p / voxel_size_m * self.box_per_voxel / 2.0);
@@ -68,42 +110,83 @@ impl PredictedObject {
             })
     }
 
-    /// The band modes a hit plays, at the reference (relative gains).
-    pub fn strike(&self, hit: &Hit, voxel_size_m: f64) -> Vec<BandMode> {
+    /// Reference-unit modal forces at the hit (shape voxel edge `voxel_size_m`), one per mode
+    /// into `out`, as [`crate::modal::ModeBasis::reference_forces_into`] gives them: multiply
+    /// by `1 / sqrt(rho h^3)` for physical units. The network's relative gains at the struck
+    /// cell, levelled by the free-end estimate of the module docs. A hit without a force
+    /// direction pushes towards the shape's centre. Never allocates (the engine calls it on
+    /// the audio thread).
+    pub fn reference_forces_into(&self, hit: &Hit, voxel_size_m: f64, out: &mut [f64]) {
+        out.iter_mut().for_each(|f| *f = 0.0);
         let Some(cell) = self.strike_cell(hit.point_m, voxel_size_m) else {
-            return Vec::new();
+            return;
         };
         let direction = hit.direction.unwrap_or_else(|| {
-            // Towards the centre of the shape's box, from the cell's centre.
             let centre = self.grid_dims.map(|d| d as f64 * self.box_per_voxel / 2.0);
             let p = cell.map(|v| 2.0 * v as f64 + 1.0);
             [0, 1, 2].map(|a| centre[a] - p[a])
         });
-        self.prediction.strike(cell, direction)
+        let norm = direction.iter().map(|d| d * d).sum::<f64>().sqrt();
+        if !(norm.is_finite() && norm > 0.0) {
+            return;
+        }
+        let c = CELLS_PER_AXIS;
+        let outputs = self
+            .prediction
+            .cell_outputs(cell[0] + c * (cell[1] + c * cell[2]));
+        // Relative gains (loudest axis strike's loudest mode: 1), as BandEncoding::strike.
+        let gain = |b: usize| {
+            (0..DIRECTIONS)
+                .map(|d| {
+                    let ch = d * BANDS + b;
+                    let g = if outputs[ch] > 0.0 {
+                        10f64.powf(3.0 * (outputs[MASK_CHANNELS + ch].clamp(0.0, 1.0) as f64 - 1.0))
+                    } else {
+                        0.0
+                    };
+                    (direction[d] / norm * g).powi(2)
+                })
+                .sum::<f64>()
+                .sqrt()
+        };
+        let Some((loud, _)) = self
+            .bands
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| (i, gain(b)))
+            .filter(|(_, g)| *g > 0.0)
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            return;
+        };
+        let loudest_gain = gain(self.bands[loud]);
+        let loudest_value = FREE_END_MODE_VALUE / self.volume_voxels.max(1e-9).sqrt();
+        let loudest_omega = self.eigenvalues[loud].sqrt();
+        for (i, o) in out.iter_mut().take(self.bands.len()).enumerate() {
+            // gain = value / omega: value_i = (g_i / g_L) value_L omega_i / omega_L.
+            *o = gain(self.bands[i]) / loudest_gain * loudest_value * self.eigenvalues[i].sqrt()
+                / loudest_omega;
+        }
     }
 
     /// Every predicted mode for a material, a voxel edge and a strike: natural frequency,
-    /// damping and impulse amplitude, ascending in frequency (see the module docs).
+    /// damping and impulse amplitude, ascending (as [`crate::modal::ModeBasis::voice`]).
     pub fn voice(&self, material: &Material, voxel_size_m: f64, hit: &Hit) -> Vec<VoicedMode> {
-        let modes = self.strike(hit, voxel_size_m);
-        // Reference units: voxel edge 1 in the box, E = rho = 1.
-        let box_voxel_m = voxel_size_m / self.box_per_voxel;
-        let s = material.youngs_modulus_pa / (material.density_kg_m3 * box_voxel_m * box_voxel_m);
-        let mass_kg = material.density_kg_m3 * self.volume_voxels * voxel_size_m.powi(3);
-        let loudest_omega = modes
+        let mut forces = vec![0.0; self.mode_count()];
+        self.reference_forces_into(hit, voxel_size_m, &mut forces);
+        let s = material.youngs_modulus_pa / (material.density_kg_m3 * voxel_size_m * voxel_size_m);
+        let physical = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
+        self.eigenvalues
             .iter()
-            .max_by(|a, b| a.gain.total_cmp(&b.gain))
-            .map(|m| (bands::reference_eigenvalue(m.freq_hz) * s).sqrt());
-        let mut voiced: Vec<VoicedMode> = modes
-            .iter()
-            .map(|m| {
-                let lambda = bands::reference_eigenvalue(m.freq_hz) * s;
+            .zip(&forces)
+            .map(|(&l, &f)| {
+                let lambda = l * s;
                 let damped = material.damping.damp(lambda);
-                let gain = match (damped, loudest_omega) {
-                    (DampedMode::Oscillating { .. }, Some(w)) if w > 0.0 && mass_kg > 0.0 => {
-                        m.gain * FREE_END_MODE_VALUE / (mass_kg.sqrt() * w)
+                let gain = match damped {
+                    DampedMode::Oscillating { freq_hz, .. } => {
+                        f * physical / (std::f64::consts::TAU * freq_hz)
                     }
-                    _ => 0.0,
+                    DampedMode::Overdamped { .. } => 0.0,
                 };
                 VoicedMode {
                     natural_hz: lambda.sqrt() / std::f64::consts::TAU,
@@ -112,9 +195,7 @@ impl PredictedObject {
                     residual: f64::NAN,
                 }
             })
-            .collect();
-        voiced.sort_by(|a, b| a.natural_hz.total_cmp(&b.natural_hz));
-        voiced
+            .collect()
     }
 }
 

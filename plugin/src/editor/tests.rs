@@ -293,7 +293,7 @@ impl modalforge::engine::ModeSolver for Labelled {
     fn solve(
         &mut self,
         r: &modalforge::engine::ObjectRequest,
-    ) -> Result<modalforge::modal::ModeBasis, modalforge::modal::ModalError> {
+    ) -> Result<modalforge::engine::ObjectModes, modalforge::modal::ModalError> {
         std::thread::sleep(std::time::Duration::from_millis(self.delay_ms));
         modalforge::engine::FemSolver.solve(r)
     }
