@@ -39,6 +39,9 @@ pub enum PredictorError {
     Empty,
 }
 
+/// The shipped weights (burnpack), compiled in.
+const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/modenet.bpk");
+
 /// The trained network, ready to predict on the CPU.
 pub struct Predictor {
     model: ModeNet,
@@ -79,11 +82,7 @@ impl Predictor {
     /// The weights shipped in the repository (`assets/predictor/modenet.bpk`, compiled in;
     /// `assets/predictor/README.md` says how they were trained).
     pub fn shipped() -> Result<Self, PredictorError> {
-        // STUB until the first training run lands its weights: no shipped file yet.
-        Err(PredictorError::Weights(
-            "assets/predictor/modenet.bpk".into(),
-            "not trained yet; pass --weights".into(),
-        ))
+        Self::from_bytes(SHIPPED_WEIGHTS, "assets/predictor/modenet.bpk")
     }
 
     /// Loads weights from a file.
@@ -140,8 +139,8 @@ struct Head {
 pub struct Prediction {
     /// Whether each strike cell holds surface (from the shape, as the labels define it).
     pub struck: Vec<bool>,
-    /// `log10(Hz)` at the reference of each band's predicted mode; `None` where the network
-    /// predicts an empty band.
+    /// `log10(Hz)` at the reference of each band's predicted mode (every band: the strike
+    /// masks decide which play).
     pub band_log_hz: [Option<f32>; BANDS],
     /// Per-cell features, `[inputs][cell]`.
     features: Vec<f32>,
@@ -239,11 +238,6 @@ pub fn predict_batch(
     let trunk = model.trunk(input);
     let (weights, bias) = model.head_matrix();
     let features = trunk.features.into_data().try_to_vec::<f32>().expect("f32");
-    let logits = trunk
-        .band_logit
-        .into_data()
-        .try_to_vec::<f32>()
-        .expect("f32");
     let positions = trunk
         .band_position
         .into_data()
@@ -261,9 +255,11 @@ pub fn predict_batch(
         .enumerate()
         .map(|(k, g)| Prediction {
             struck: bands::struck_cells(g),
+            // Every band gets its predicted frequency; the per-strike masks decide what plays
+            // (Deep-Modal eq. 9). The band-presence logits are a training signal only: as a
+            // gate they silenced strikes whose masks were on (the default bowl played nothing).
             band_log_hz: std::array::from_fn(|band| {
-                (logits[k * BANDS + band] > 0.0)
-                    .then(|| metrics::band_log_hz(band, positions[k * BANDS + band] as f64) as f32)
+                Some(metrics::band_log_hz(band, positions[k * BANDS + band] as f64) as f32)
             }),
             features: features[k * per..(k + 1) * per].to_vec(),
             head: head.clone(),

@@ -26,7 +26,8 @@ fn fundamental(p: &Preset) -> (f64, f64, usize) {
         },
     )
     .unwrap();
-    let lines = spectrum(&basis, &p.voicing().unwrap(), FS).unwrap();
+    let modes = modalforge::engine::ObjectModes::Fem(basis);
+    let lines = spectrum(&modes, &p.voicing().unwrap(), FS).unwrap();
     let audible = lines.iter().filter(|l| l.freq_hz < 20_000.0).count();
     let f0 = lines
         .iter()

@@ -460,6 +460,8 @@ pub fn neural_report(
     use crate::predictor::bands::{self, BANDS, DIRECTIONS};
     let h = object.grid.voxel_size_m();
     let mut voiced = predicted.voice(&object.material, h, hit);
+    // The bands this strike excites (a masked-off band has no force here).
+    voiced.retain(|m| m.gain != 0.0);
     if let Some(f) = fmax_hz {
         voiced.retain(|m| m.natural_hz <= f);
     }

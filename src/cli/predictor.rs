@@ -137,6 +137,13 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         .iter()
         .filter_map(|b| Record::decode(b).ok())
         .collect();
+    if train.is_empty() {
+        return Ok(format!(
+            "network:        {network} ({per_shape_ms:.1} ms per shape scored, batches of 8, one thread)\n\
+             shape matching: no training records under {} to match against",
+            args.data.display()
+        ));
+    }
     let matcher = baseline::ShapeMatch::new(&train);
     let scores: Vec<metrics::ObjectScore> = held
         .iter()

@@ -162,6 +162,12 @@ impl AudioEngine {
         self.object.is_some()
     }
 
+    /// The generation of the object being played (it increases with every answer the worker
+    /// delivers), and the solver that made it.
+    pub fn object_generation(&self) -> Option<(u64, &'static str)> {
+        self.object.as_ref().map(|o| (o.generation, o.solver))
+    }
+
     /// Silences every voice (the object stays).
     pub fn reset(&mut self) {
         self.voices.iter_mut().for_each(Voice::release);

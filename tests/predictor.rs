@@ -1,0 +1,107 @@
+//! The shipped neural predictor (issue 12): its weights load, and on held-out objects (shape
+//! families training never saw) it predicts FEM's band representation within stated bounds.
+//! The truth is the product's FEM, solved here for each object; no training runs in the tests.
+
+use modalforge::predictor::dataset::{self, Record};
+use modalforge::predictor::{metrics, Predictor};
+use std::process::Command;
+
+/// Held-out objects scored (a plate with holes, a handled cup, alternately).
+const OBJECTS: usize = 4;
+/// Bounds on the four objects' figures. The shipped weights measure recall 25.3 %, precision
+/// 62.4 %, amplitude MSE 0.103 and a median pitch error of 42.9 cents on them
+/// (`modalforge predictor eval --limit 4`); the bounds sit a fifth away, so a regression of
+/// the weights, the input layout or the decode fails them. (These are the interim weights'
+/// figures, far from the issue's goals: assets/predictor/README.md.)
+const RECALL_BOUND: f64 = 0.20;
+const PRECISION_BOUND: f64 = 0.50;
+const MSE_BOUND: f64 = 0.125;
+const CENTS_BOUND: f64 = 50.0;
+
+#[test]
+fn the_shipped_weights_predict_held_out_objects_within_bounds() {
+    let predictor = Predictor::shipped().expect("the shipped weights load");
+    let mut scores = Vec::new();
+    for index in 0..OBJECTS {
+        let (family, grid) = dataset::object(1, true, index);
+        let truth = Record::label(family, grid.clone()).expect("FEM labels");
+        // The objects fit the box already (no resample): the network sees the training input.
+        let p = predictor.predict(&grid).expect("predicts");
+        scores.push(metrics::score(&p.prediction.to_encoding(), &truth.labels));
+    }
+    let m = metrics::summarise(&scores);
+    assert!(m.mask_recall > RECALL_BOUND, "{m}");
+    assert!(m.mask_precision > PRECISION_BOUND, "{m}");
+    assert!(m.amplitude_mse < MSE_BOUND, "{m}");
+    assert!(m.pitch_median_cents < CENTS_BOUND, "{m}");
+}
+
+#[test]
+fn the_cli_predicts_and_bad_weights_are_one_clear_line() {
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_modalforge"))
+            .args(args)
+            .output()
+            .expect("binary runs")
+    };
+    let out = run(&[
+        "modes",
+        "--shape",
+        "bowl:d=16,wall=2",
+        "--material",
+        "glass",
+        "--size",
+        "0.2",
+        "--solver",
+        "neural",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["solver"], "neural");
+    let modes = report["modes"].as_array().unwrap();
+    // The modes the library predicts for the same grid and strike (`modes` prints the same).
+    assert!(
+        !modes.is_empty(),
+        "the masks play nothing at the default hit"
+    );
+    for m in modes {
+        let f = m["freq_hz"].as_f64().unwrap();
+        assert!(f.is_finite() && f > 0.0 && m["gain"].as_f64().unwrap().is_finite());
+    }
+    // The resample is said on stderr.
+    assert!(String::from_utf8_lossy(&out.stderr).contains("resampled"));
+    let bad = run(&[
+        "modes",
+        "--shape",
+        "bar:16x2x2",
+        "--solver",
+        "neural",
+        "--weights",
+        "/nonexistent.bpk",
+    ]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("/nonexistent.bpk"), "{err}");
+    let garbage = std::env::temp_dir().join("modalforge-garbage.bpk");
+    std::fs::write(&garbage, b"not weights").unwrap();
+    let bad = run(&[
+        "modes",
+        "--shape",
+        "bar:16x2x2",
+        "--solver",
+        "neural",
+        "--weights",
+        garbage.to_str().unwrap(),
+    ]);
+    assert!(!bad.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&bad.stderr).trim().lines().count(),
+        1
+    );
+}
