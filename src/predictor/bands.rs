@@ -144,6 +144,19 @@ fn on_surface(grid: &VoxelGrid, v: [usize; 3]) -> bool {
             .any(|n| !grid.get(p[0] + n[0], p[1] + n[1], p[2] + n[2]))
 }
 
+/// The gain of one band for a force along the unit vector `direction`, from its three axis
+/// strikes' normalised log-amplitudes (`None` where the mask is off): the axis gains
+/// `10^(3 (a - 1))` combined as `sqrt(sum (d_k g_k)^2)` (their signs are not kept).
+pub fn band_gain(direction: [f64; 3], log_amplitude: [Option<f32>; DIRECTIONS]) -> f64 {
+    (0..DIRECTIONS)
+        .map(|k| {
+            let g = log_amplitude[k].map_or(0.0, |a| 10f64.powf(3.0 * (a as f64 - 1.0)));
+            (direction[k] * g).powi(2)
+        })
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// Which strike cells (x fastest) hold surface: a solid voxel with an empty face neighbour.
 pub fn struck_cells(grid: &VoxelGrid) -> Vec<bool> {
     let mut struck = vec![false; CELLS_PER_AXIS.pow(3)];
@@ -252,21 +265,15 @@ impl BandEncoding {
         (0..BANDS)
             .filter_map(|b| {
                 let freq_hz = 10f64.powf(self.band_log_hz[b]? as f64);
-                let power: f64 = (0..DIRECTIONS)
-                    .map(|dir| {
-                        let i = (cell * DIRECTIONS + dir) * BANDS + b;
-                        let g = if self.mask[i] {
-                            10f64.powf(3.0 * (self.log_amplitude[i] as f64 - 1.0))
-                        } else {
-                            0.0
-                        };
-                        (direction[dir] / norm * g).powi(2)
-                    })
-                    .sum();
-                (power > 0.0).then(|| BandMode {
+                let entries = std::array::from_fn(|dir| {
+                    let i = (cell * DIRECTIONS + dir) * BANDS + b;
+                    self.mask[i].then_some(self.log_amplitude[i])
+                });
+                let gain = band_gain(direction.map(|d| d / norm), entries);
+                (gain > 0.0).then_some(BandMode {
                     band: b,
                     freq_hz,
-                    gain: power.sqrt(),
+                    gain,
                 })
             })
             .collect()

@@ -23,7 +23,7 @@
 //!   nearest struck cell when it falls outside the surface); a strike without a force
 //!   direction pushes towards the object's centre.
 
-use super::bands::{self, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use super::bands::{self, BANDS, CELLS_PER_AXIS, INPUT_SIDE};
 use super::network::MASK_CHANNELS;
 use super::Prediction;
 use crate::material::DampedMode;
@@ -135,19 +135,15 @@ impl PredictedObject {
             .prediction
             .cell_outputs(cell[0] + c * (cell[1] + c * cell[2]));
         // Relative gains (loudest axis strike's loudest mode: 1), as BandEncoding::strike.
+        let unit = direction.map(|d| d / norm);
         let gain = |b: usize| {
-            (0..DIRECTIONS)
-                .map(|d| {
+            bands::band_gain(
+                unit,
+                std::array::from_fn(|d| {
                     let ch = d * BANDS + b;
-                    let g = if outputs[ch] > 0.0 {
-                        10f64.powf(3.0 * (outputs[MASK_CHANNELS + ch].clamp(0.0, 1.0) as f64 - 1.0))
-                    } else {
-                        0.0
-                    };
-                    (direction[d] / norm * g).powi(2)
-                })
-                .sum::<f64>()
-                .sqrt()
+                    (outputs[ch] > 0.0).then_some(outputs[MASK_CHANNELS + ch].clamp(0.0, 1.0))
+                }),
+            )
         };
         let Some((loud, _)) = self
             .bands

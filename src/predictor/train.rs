@@ -182,7 +182,7 @@ struct FlatTargets {
 }
 
 /// A batch of records as tensors on `device`: the input and the targets.
-pub fn batch_tensors(records: &[(Record, Perm)], device: &Device) -> (Tensor<5>, Targets) {
+pub fn batch_tensors(records: &[(&Record, Perm)], device: &Device) -> (Tensor<5>, Targets) {
     let b = records.len();
     let (n, c) = (INPUT_SIDE, CELLS_PER_AXIS);
     let mut fills = Vec::with_capacity(b * n * n * n);
@@ -295,9 +295,9 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         let (mut sum, mut steps) = (0.0f64, 0usize);
         let batches = order.len().div_ceil(options.batch.max(1));
         for (k, chunk) in order.chunks(options.batch.max(1)).enumerate() {
-            let items: Vec<(Record, Perm)> = chunk
+            let items: Vec<(&Record, Perm)> = chunk
                 .iter()
-                .map(|&i| (train[i].clone(), PERMS[rng.below(6)]))
+                .map(|&i| (&train[i], PERMS[rng.below(6)]))
                 .collect();
             let (fills, targets) = batch_tensors(&items, &device);
             let losses = model.loss(fills, &targets);
@@ -411,10 +411,11 @@ mod tests {
         // layout or optimiser step would not).
         let bar = VoxelGrid::from_fn([30, 6, 4], 1.0, |_, _, _| true).unwrap();
         let plate = VoxelGrid::from_fn([24, 20, 2], 1.0, |_, _, _| true).unwrap();
-        let records: Vec<(Record, Perm)> = [bar, plate]
+        let labelled: Vec<Record> = [bar, plate]
             .into_iter()
-            .map(|g| (Record::label(Family::Solid, g).expect("labels"), PERMS[0]))
+            .map(|g| Record::label(Family::Solid, g).expect("labels"))
             .collect();
+        let records: Vec<(&Record, Perm)> = labelled.iter().map(|r| (r, PERMS[0])).collect();
         assert!(records
             .iter()
             .all(|(r, _)| r.labels.mask.iter().any(|&m| m)));
