@@ -73,8 +73,8 @@ impl Family {
 }
 
 /// A small deterministic random stream (SplitMix64, Steele, Lea and Flood 2014): enough for
-/// shape parameters, and reproducible everywhere.
-struct Stream(u64);
+/// shape parameters and for training's shuffles, and reproducible everywhere.
+pub(crate) struct Stream(pub(crate) u64);
 
 impl Stream {
     fn new(seed: u64, split: u64, index: u64) -> Self {
@@ -83,12 +83,16 @@ impl Stream {
         s.next();
         s
     }
-    fn next(&mut self) -> u64 {
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
+    }
+    /// Uniform integer in `0..n` (training's shuffles and augmentation draws).
+    pub(crate) fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
     }
     /// Uniform in `[lo, hi)`.
     fn range(&mut self, lo: f64, hi: f64) -> f64 {

@@ -207,23 +207,6 @@ pub fn batch_tensors(records: &[(&Record, Perm)], device: &Device) -> (Tensor<5>
     )
 }
 
-/// A SplitMix64 stream for shuffling (Steele, Lea and Flood 2014).
-struct Shuffle(u64);
-
-impl Shuffle {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
-
 fn checkpoint_err(path: &Path, e: impl std::fmt::Display) -> TrainError {
     TrainError::Checkpoint(path.to_path_buf(), e.to_string())
 }
@@ -287,7 +270,9 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         let epoch = state.epoch + 1;
         let lr =
             options.learning_rate * 0.5f64.powi(((epoch - 1) / options.halve_every.max(1)) as i32);
-        let mut rng = Shuffle(options.seed ^ (epoch as u64).wrapping_mul(0xA24B_AED4_963E_E407));
+        let mut rng = super::dataset::Stream(
+            options.seed ^ (epoch as u64).wrapping_mul(0xA24B_AED4_963E_E407),
+        );
         for i in (1..order.len()).rev() {
             order.swap(i, rng.below(i + 1));
         }
