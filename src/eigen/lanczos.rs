@@ -66,37 +66,53 @@ impl Basis {
         self.mv = mv;
     }
 
-    /// Removes the components of `w` along the basis (twice); returns the coefficients.
-    fn project_out(&self, w: &mut Mat<f64>) -> Mat<f64> {
-        let mut total = Mat::zeros(self.len, w.ncols());
-        if self.len == 0 {
-            return total;
-        }
-        let v = self.v.get(.., ..self.len);
-        let mv = self.mv.get(.., ..self.len);
+    /// One classical Gram-Schmidt pass of `w` against the basis columns `cols` in the
+    /// M-inner product; returns the coefficients removed (`cols.len() x w.ncols()`).
+    fn project_pass(&self, cols: std::ops::Range<usize>, w: &mut Mat<f64>) -> Mat<f64> {
+        let v = self.v.get(.., cols.clone());
+        let mv = self.mv.get(.., cols);
         // In transposed form (`C^T = W^T (M V)`, `W^T -= C^T V^T`) the small block is the
         // left operand, which the matrix product packs; the basis is read in place.
-        let mut ct = Mat::<f64>::zeros(w.ncols(), self.len);
-        for _ in 0..2 {
-            matmul(
-                ct.as_mut(),
-                Accum::Replace,
-                w.transpose(),
-                mv,
-                1.0,
-                Par::Seq,
-            );
-            matmul(
-                w.as_mut().transpose_mut(),
-                Accum::Add,
-                ct.as_ref(),
-                v.transpose(),
-                -1.0,
-                Par::Seq,
-            );
-            total += ct.transpose();
+        let mut ct = Mat::<f64>::zeros(w.ncols(), v.ncols());
+        matmul(
+            ct.as_mut(),
+            Accum::Replace,
+            w.transpose(),
+            mv,
+            1.0,
+            Par::Seq,
+        );
+        matmul(
+            w.as_mut().transpose_mut(),
+            Accum::Add,
+            ct.as_ref(),
+            v.transpose(),
+            -1.0,
+            Par::Seq,
+        );
+        ct.transpose().to_owned()
+    }
+
+    /// Removes the components of `w` along the basis: first along its last `local` columns,
+    /// where a Lanczos block's components lie in exact arithmetic (the three-term block
+    /// recurrence), then along the whole basis once, which removes what rounding left along
+    /// the older vectors. Returns every coefficient removed (`len x w.ncols()`) and the full
+    /// pass's alone: [`chol_qr`] asks for a second full pass where that pass removed more
+    /// than half of a column's M-norm squared (the "twice is enough" test of Daniel, Gragg,
+    /// Kaufman and Stewart 1976), which after the local pass only happens when
+    /// orthogonality was really lost.
+    fn project_out(&self, w: &mut Mat<f64>, local: usize) -> (Mat<f64>, Mat<f64>) {
+        let len = self.len;
+        let mut total = Mat::zeros(len, w.ncols());
+        if len == 0 {
+            return (total, Mat::zeros(0, w.ncols()));
         }
-        total
+        let recent = len.saturating_sub(local)..len;
+        let c = self.project_pass(recent.clone(), w);
+        total.as_mut().get_mut(recent, ..).copy_from(&c);
+        let full = self.project_pass(0..len, w);
+        total += &full;
+        (total, full)
     }
 }
 
@@ -123,29 +139,52 @@ type BlockQr = (Mat<f64>, Mat<f64>, Mat<f64>);
 /// (numerically) no new direction: the block QR falls back to [`block_qr`], which replaces it.
 const BREAKDOWN_RELATIVE: f64 = 1e-10;
 
+/// Why [`chol_qr`] gave no factorisation.
+enum QrRefusal {
+    /// The last full projection pass removed more than half of a column's M-norm squared:
+    /// project once more, then try again.
+    Reorthogonalise,
+    /// A column has (numerically) no new direction, or the block is nearly dependent: use
+    /// [`block_qr`], which replaces such columns.
+    Breakdown,
+}
+
 /// Cholesky QR in the M-inner product, twice (CholQR2: Yamamoto et al. 2015): one block
 /// product `M W` (SpMM), two small Cholesky factorisations, and `M Q` follows from `M W`
-/// without another product. `projected` holds the coefficients [`Basis::project_out`] removed,
-/// so a column that lost nearly all of its norm there is detected; such a block, or one whose
-/// columns are nearly dependent, returns `None` (the caller uses [`block_qr`]).
-fn chol_qr(ops: &Operators, w: &Mat<f64>, projected: &Mat<f64>) -> Option<BlockQr> {
+/// without another product. `projected` holds every coefficient [`Basis::project_out`]
+/// removed, so a column that lost nearly all of its norm there is detected; `last_pass` the
+/// coefficients of its last full pass, for the reorthogonalisation test (M-norms by
+/// Pythagoras: the basis is M-orthonormal, so a pass that removed `c` leaves `||w||^2_M` of
+/// `||w||^2_M + |c|^2`).
+fn chol_qr(
+    ops: &Operators,
+    w: &Mat<f64>,
+    projected: &Mat<f64>,
+    last_pass: &Mat<f64>,
+) -> Result<BlockQr, QrRefusal> {
     let b = w.ncols();
     let mw = ops.apply_block(Which::M, w.as_ref());
     let g = w.transpose() * &mw;
+    let mut reorthogonalise = false;
     for j in 0..b {
-        let before = projected.col(j).iter().map(|c| c * c).sum::<f64>() + g[(j, j)];
+        let squared = |c: &Mat<f64>| c.col(j).iter().map(|c| c * c).sum::<f64>();
         let kept = g[(j, j)];
+        let before = squared(projected) + kept;
         if kept.is_nan() || kept <= BREAKDOWN_RELATIVE * BREAKDOWN_RELATIVE * before {
-            return None;
+            return Err(QrRefusal::Breakdown);
         }
+        reorthogonalise |= kept < squared(last_pass);
     }
-    let r1 = upper_cholesky(&g)?;
+    if reorthogonalise {
+        return Err(QrRefusal::Reorthogonalise);
+    }
+    let r1 = upper_cholesky(&g).ok_or(QrRefusal::Breakdown)?;
     let inv1 = upper_inverse(&r1);
     let q = w * &inv1;
     let mq = &mw * &inv1;
-    let r2 = upper_cholesky(&(q.transpose() * &mq))?;
+    let r2 = upper_cholesky(&(q.transpose() * &mq)).ok_or(QrRefusal::Breakdown)?;
     let inv2 = upper_inverse(&r2);
-    Some((&q * &inv2, &mq * &inv2, &r2 * &r1))
+    Ok((&q * &inv2, &mq * &inv2, &r2 * &r1))
 }
 
 /// `R` upper triangular with `R^T R = G`, or `None` if `G` is not safely positive definite
@@ -240,7 +279,9 @@ fn block_qr(
             }
             *seed += 1;
             let mut fresh_col = random_block(n, 1, *seed);
-            basis.project_out(&mut fresh_col);
+            for _ in 0..2 {
+                basis.project_pass(0..basis.len, &mut fresh_col);
+            }
             w.col_as_slice_mut(i)
                 .copy_from_slice(fresh_col.col_as_slice(0));
             ops.apply_m(w.col_as_slice(i), &mut mw);
@@ -261,9 +302,18 @@ fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
-/// Basis size for `nev` wanted pairs with blocks of `b`.
+/// Requests of up to this many pairs get a basis of about three vectors per pair.
+const ROOMY_BASIS_MAX_PAIRS: usize = 200;
+
+/// Basis size for `nev` wanted pairs with blocks of `b`. Up to [`ROOMY_BASIS_MAX_PAIRS`] it
+/// holds about three vectors per pair, which is what 66 pairs of the default bowl needed: such
+/// requests converge without a restart (a thick restart keeps the wanted Ritz vectors and
+/// drops the rest of the Krylov space; with room for two per pair the default object took 240
+/// vectors and a restart, with three 208 and none). Larger requests restart at two per pair
+/// (the basis and `M V` take `2 n cap` doubles).
 fn basis_cap(nev: usize, b: usize, n: usize) -> usize {
-    let want = (2 * nev + 3 * b).max(nev + 4 * b);
+    let per_pair = if nev <= ROOMY_BASIS_MAX_PAIRS { 3 } else { 2 };
+    let want = (per_pair * nev + 3 * b).max(nev + 4 * b);
     (want.div_ceil(b) * b).min(n.max(b))
 }
 
@@ -272,8 +322,7 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     let ops = Operators::new(model);
     let t0 = Instant::now();
     let shift = -SHIFT_RELATIVE * ops.scale;
-    let b = options.block_size.min(ops.dofs());
-    let mut llt = ShiftedCholesky::new(model, shift, b, Par::Seq)?;
+    let mut llt = ShiftedCholesky::new(model, shift, Par::Seq)?;
     let mut solution = run(&ops, &mut llt, shift, options)?;
     solution.timings.setup_ms = t0.elapsed().as_secs_f64() * 1e3 - solution.timings.iterate_ms;
     Ok(solution)
@@ -394,14 +443,28 @@ impl RitzCheck<'_> {
     }
 }
 
-/// Basis length from which the Ritz pairs are checked after every block: the wanted pairs
-/// plus two blocks (fewer vectors cannot hold `nev` converged pairs of a block method).
+/// Basis length of the first convergence check: the wanted pairs plus two blocks (fewer
+/// vectors cannot hold `nev` converged pairs of a block method).
 fn first_check(nev: usize, b: usize) -> usize {
     nev + 2 * b
 }
 
-/// The iteration on an existing factorisation `llt` of `K - shift M` (sized for at least
-/// `options.block_size` right-hand sides); `setup_ms` of the result is zero.
+/// Vectors to add before the next convergence check, after one found `converged` of `nev`
+/// pairs converged in a basis of `len`: half of what a linear extrapolation (`len /
+/// converged` vectors per pair) gives the missing pairs, in whole blocks, at least one block
+/// and at most `nev`. A check costs about what a block does (a dense eigendecomposition of the
+/// projected matrix, ~4 ms at 200 vectors); pairs converge faster as the basis grows, so the
+/// extrapolation overestimates and half of it seldom overshoots (by a block when it does).
+/// The default object went from 20 checks to 6.
+fn vectors_before_next_check(len: usize, converged: usize, nev: usize, b: usize) -> usize {
+    let missing = nev.saturating_sub(converged) as f64;
+    let per_pair = len as f64 / converged.max(1) as f64;
+    let gap = ((0.5 * missing * per_pair) as usize).min(nev);
+    (gap / b * b).max(b)
+}
+
+/// The iteration on an existing factorisation `llt` of `K - shift M`; `setup_ms` of the
+/// result is zero.
 pub fn run(
     ops: &Operators,
     llt: &mut ShiftedCholesky,
@@ -436,6 +499,7 @@ pub fn run(
     basis.len = b;
     let mut fresh = 0..b; // columns whose operator image is still to be computed
     let (mut converged_count, mut worst) = (0, f64::INFINITY);
+    let mut next_check = first_check(nev, b);
     for restart in 0..options.max_iterations {
         checker.restarts = restart;
         // Expand until converged or full; the last block's residual is kept for the restart.
@@ -443,16 +507,27 @@ pub fn run(
             let cols = fresh.clone();
             let mut w = basis.mv.get(.., cols.clone()).to_owned();
             llt.solve_in_place(w.as_mut());
-            let c = basis.project_out(&mut w);
-            h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
-            let (q, mq, r) = match chol_qr(ops, &w, &c) {
-                Some(qr) => qr,
-                None => block_qr(ops, &basis, w, &mut seed)?,
+            let (mut c, mut last_pass) = basis.project_out(&mut w, 2 * b);
+            let mut passes = 1;
+            let (q, mq, r) = loop {
+                match chol_qr(ops, &w, &c, &last_pass) {
+                    Ok(qr) => break qr,
+                    Err(QrRefusal::Reorthogonalise) if passes < 2 => {
+                        last_pass = basis.project_pass(0..basis.len, &mut w);
+                        c += &last_pass;
+                        passes += 1;
+                    }
+                    Err(_) => break block_qr(ops, &basis, w, &mut seed)?,
+                }
             };
-            if basis.len >= first_check(nev, b) {
+            h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
+            if basis.len >= next_check {
                 match checker.run(&basis, &h, cols.clone(), (&q, &mq, &r))? {
                     Check::Done(solution) => return Ok(*solution),
-                    Check::Converged(..) => {}
+                    Check::Converged(converged, _) => {
+                        next_check =
+                            basis.len + vectors_before_next_check(basis.len, converged, nev, b);
+                    }
                 }
             }
             if basis.len + q.ncols() > basis.cap() {
@@ -539,6 +614,7 @@ pub fn run(
             .copy_from(&mq_res);
         basis.len = keep_n + qb;
         fresh = keep_n..keep_n + qb;
+        next_check = basis.len + vectors_before_next_check(len, converged_count, nev, b);
     }
     Err(EigenError::NoConvergence {
         converged: converged_count,

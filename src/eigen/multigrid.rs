@@ -28,7 +28,7 @@ use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
 use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
-use faer::{MatMut, Par};
+use faer::Par;
 use std::collections::HashMap;
 
 /// Coarsening stops once a level has at most this many nodes; that level is factored.
@@ -101,8 +101,9 @@ pub struct Multigrid {
     levels: Vec<Level>,
     coarse: CoarseProblem,
     factor: ShiftedCholesky,
-    /// The coarsest level's block in f64, for the factor's solve.
+    /// The coarsest level's block in f64, for the factor's solve, and its solution.
     coarse_x: Vec<f64>,
+    coarse_solved: Vec<f64>,
     tau: f64,
     max_width: usize,
 }
@@ -175,7 +176,6 @@ impl Multigrid {
             &coarse_m,
             -tau,
             &order,
-            max_width.max(1),
             Par::Seq,
         )?;
         let coarse = CoarseProblem {
@@ -197,6 +197,7 @@ impl Multigrid {
             levels,
             coarse,
             factor,
+            coarse_solved: coarse_x.clone(),
             coarse_x,
             tau,
             max_width,
@@ -283,9 +284,10 @@ impl Multigrid {
             for (d, &v) in x.iter_mut().zip(&level.rhs[..n * b]) {
                 *d = v as f64;
             }
-            self.factor
-                .solve_in_place(MatMut::from_row_major_slice_mut(x, n, b));
-            for (d, &v) in level.x[..n * b].iter_mut().zip(x.iter()) {
+            let block = RowBlock::dense(b);
+            let solved = &mut self.coarse_solved[..n * b];
+            self.factor.solve_rows(x, block, solved, block);
+            for (d, &v) in level.x[..n * b].iter_mut().zip(solved.iter()) {
                 *d = v as Real;
             }
             return;

@@ -194,7 +194,7 @@ pub fn solve(
         return super::solve(next, SolverKind::Lanczos, options);
     }
     let shift = -SHIFT_RELATIVE * ops.scale;
-    let mut llt = ShiftedCholesky::new(next, shift, m.max(options.block_size), Par::Seq)?;
+    let mut llt = ShiftedCholesky::new(next, shift, Par::Seq)?;
     let old_vectors = previous_columns(previous_solution, usize::MAX);
     let carried = transfer(previous, old_vectors.as_ref(), next, offset);
     let fields = extra_rigid(previous_solution).ncols() == 0;
