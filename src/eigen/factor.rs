@@ -142,44 +142,31 @@ impl ShiftedCholesky {
     /// Overwrites `rhs` with `(K - sigma M)^-1 rhs`.
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         assert_eq!(rhs.nrows(), self.dofs, "one right-hand-side row per DOF");
-        let mut c0 = 0;
-        while c0 < rhs.ncols() {
-            let w = chunk_width(rhs.ncols() - c0);
-            let (fwd, x) = (&self.fwd, &mut self.scratch[..self.dofs * w]);
-            for (k, row) in x.chunks_exact_mut(w).enumerate() {
-                for (j, v) in row.iter_mut().enumerate() {
-                    *v = rhs[(fwd[k], c0 + j)];
-                }
-            }
-            self.solve_scratch(w);
-            let x = &self.scratch[..self.dofs * w];
-            for (i, &k) in self.inv.iter().enumerate() {
-                for (j, v) in x[k * w..(k + 1) * w].iter().enumerate() {
-                    rhs[(i, c0 + j)] = *v;
-                }
-            }
-            c0 += w;
-        }
+        let width = rhs.ncols();
+        self.solve_chunks(width, &mut rhs);
     }
 
     /// `z = (K - sigma M)^-1 r` for row-major blocks of any width (`r` and `z` may be wider
     /// than the block: only `width` columns of each row are read and written).
     pub fn solve_rows(&mut self, r: &[f64], r_layout: RowBlock, z: &mut [f64], z_layout: RowBlock) {
         assert_eq!(r_layout.width, z_layout.width, "blocks of one width");
+        self.solve_chunks(r_layout.width, &mut (r, r_layout, z, z_layout));
+    }
+
+    /// Solves `width` right-hand sides held by `block` in chunks of up to [`CHUNK`] columns.
+    fn solve_chunks(&mut self, width: usize, block: &mut impl RightHandSides) {
         let n = self.dofs;
         let mut c0 = 0;
-        while c0 < r_layout.width {
-            let w = chunk_width(r_layout.width - c0);
+        while c0 < width {
+            let w = chunk_width(width - c0);
             let (fwd, x) = (&self.fwd, &mut self.scratch[..n * w]);
             for (k, row) in x.chunks_exact_mut(w).enumerate() {
-                let at = fwd[k] * r_layout.stride + c0;
-                row.copy_from_slice(&r[at..at + w]);
+                block.read(fwd[k], c0, row);
             }
             self.solve_scratch(w);
             let x = &self.scratch[..n * w];
             for (i, &k) in self.inv.iter().enumerate() {
-                let at = i * z_layout.stride + c0;
-                z[at..at + w].copy_from_slice(&x[k * w..(k + 1) * w]);
+                block.write(i, c0, &x[k * w..(k + 1) * w]);
             }
             c0 += w;
         }
@@ -195,6 +182,39 @@ impl ShiftedCholesky {
             2 => layout.solve::<2>(values, x.as_chunks_mut::<2>().0),
             _ => layout.solve::<1>(values, x.as_chunks_mut::<1>().0),
         }
+    }
+}
+
+/// Where a solve's right-hand sides come from and its solution goes: DOF `i`'s entries in
+/// the columns `c0..c0 + row.len()`.
+trait RightHandSides {
+    fn read(&self, i: usize, c0: usize, row: &mut [f64]);
+    fn write(&mut self, i: usize, c0: usize, row: &[f64]);
+}
+
+/// A column-major block, solved in place.
+impl RightHandSides for MatMut<'_, f64> {
+    fn read(&self, i: usize, c0: usize, row: &mut [f64]) {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = self[(i, c0 + j)];
+        }
+    }
+    fn write(&mut self, i: usize, c0: usize, row: &[f64]) {
+        for (j, v) in row.iter().enumerate() {
+            self[(i, c0 + j)] = *v;
+        }
+    }
+}
+
+/// Row-major right-hand sides and solution, each with its layout.
+impl RightHandSides for (&[f64], RowBlock, &mut [f64], RowBlock) {
+    fn read(&self, i: usize, c0: usize, row: &mut [f64]) {
+        let at = i * self.1.stride + c0;
+        row.copy_from_slice(&self.0[at..at + row.len()]);
+    }
+    fn write(&mut self, i: usize, c0: usize, row: &[f64]) {
+        let at = i * self.3.stride + c0;
+        self.2[at..at + row.len()].copy_from_slice(row);
     }
 }
 
