@@ -149,6 +149,13 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
+/// The below-diagonal parts (`nc..ld`) of supernode columns `c..c + 4`, from a supernode's
+/// column-major values `l` (`ld` rows, `nc` of them in the diagonal block).
+#[inline(always)]
+fn below_four(l: &[f64], c: usize, nc: usize, ld: usize) -> [&[f64]; 4] {
+    std::array::from_fn(|k| &l[(c + k) * ld + nc..(c + k + 1) * ld])
+}
+
 /// `y -= a x` on one row.
 #[inline(always)]
 fn sub_scaled<const W: usize, const FMA: bool>(y: &mut [f64; W], a: f64, x: &[f64; W]) {
@@ -184,12 +191,7 @@ fn forward<const W: usize, const FMA: bool>(
         let mut c = 0;
         while c + 4 <= nc {
             let (t0, t1, t2, t3) = (top[c], top[c + 1], top[c + 2], top[c + 3]);
-            let cols = [
-                &l[c * ld + nc..(c + 1) * ld],
-                &l[(c + 1) * ld + nc..(c + 2) * ld],
-                &l[(c + 2) * ld + nc..(c + 3) * ld],
-                &l[(c + 3) * ld + nc..(c + 4) * ld],
-            ];
+            let cols = below_four(l, c, nc, ld);
             for (p, &row) in rows.iter().enumerate() {
                 // SAFETY: `SupernodalRows::new` checked every pattern row is past this
                 // supernode's last column (`first - 1`) and below the order, which
@@ -246,12 +248,7 @@ fn backward<const W: usize, const FMA: bool>(
         let mut c = 0;
         while c + 4 <= nc {
             let mut acc = [top[c], top[c + 1], top[c + 2], top[c + 3]];
-            let cols = [
-                &l[c * ld + nc..(c + 1) * ld],
-                &l[(c + 1) * ld + nc..(c + 2) * ld],
-                &l[(c + 2) * ld + nc..(c + 3) * ld],
-                &l[(c + 3) * ld + nc..(c + 4) * ld],
-            ];
+            let cols = below_four(l, c, nc, ld);
             for (p, &row) in rows.iter().enumerate() {
                 // SAFETY: as in `forward`, `row - first < tail.len()`.
                 let y = unsafe { tail.get_unchecked(row as usize - first) };
