@@ -9,18 +9,20 @@
 //!
 //! Blocks (default 8 vectors) find repeated eigenvalues, which symmetric objects have, and let
 //! the triangular solves work on several right-hand sides at once. The basis is kept fully
-//! M-orthogonal (classical Gram-Schmidt against the basis, twice; within the new block, Cholesky
-//! QR twice in the M-inner product, `chol_qr`); when it is full, the wanted Ritz vectors and
-//! the residual block restart it (thick restart: Wu and Simon 2000; Stathopoulos and Saad 1998).
-//! Convergence is checked after every block from the Lanczos relation (`RitzCheck`), so the
-//! solve stops as soon as the wanted pairs meet the tolerance.
+//! M-orthogonal (classical Gram-Schmidt against the last two blocks, then once against the
+//! whole basis, a second time where the DGKS test asks; within the new block, Cholesky QR twice
+//! in the M-inner product, `chol_qr`); when it is full, the wanted Ritz vectors and the residual
+//! block restart it (thick restart: Wu and Simon 2000; Stathopoulos and Saad 1998).
+//! Convergence is checked from the Lanczos relation ([`check`]) at lengths scheduled from the
+//! observed convergence rate, so the solve stops soon after the wanted pairs meet the
+//! tolerance.
+
+mod check;
 
 use super::factor::ShiftedCholesky;
-use super::{
-    random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount,
-    Operators, Which,
-};
+use super::{random_block, EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Which};
 use crate::fem::FemModel;
+use check::{Check, NextBlock, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use std::time::Instant;
@@ -328,121 +330,6 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     Ok(solution)
 }
 
-/// What a convergence check found.
-enum Check {
-    /// Every wanted pair has converged: the answer.
-    Done(Box<EigenSolution>),
-    /// Not yet: the number of leading pairs that converged and the residual of the next one.
-    Converged(usize, f64),
-}
-
-/// The Ritz pairs of the current basis and the block that would extend it (`q`, `m q`, and
-/// `r`, its coupling to the last basis block `last`). The Lanczos relation gives every Ritz
-/// pair's residual in the operator, `Op x - theta x = Q R y_last`; multiplied by `K - sigma M`
-/// it is the residual of seed 001 eq. 6 up to the factor `1 / theta`, so one product of `K`
-/// with the `b` columns of `Q` gives all of them exactly (Gram matrix `G = Z^T Z`,
-/// `Z = (K - sigma M) Q`), with `||x||_2 >= 1 / sqrt(||M||)` for an M-unit vector. Only when
-/// those estimates say the request is met are the Ritz vectors formed and their residuals
-/// computed explicitly (block products); the explicit values decide.
-struct RitzCheck<'a> {
-    ops: &'a Operators<'a>,
-    shift: f64,
-    options: &'a EigenOptions,
-    nev: usize,
-    started: Instant,
-    restarts: usize,
-}
-
-impl RitzCheck<'_> {
-    fn run(
-        &self,
-        basis: &Basis,
-        h: &Mat<f64>,
-        last: std::ops::Range<usize>,
-        next: (&Mat<f64>, &Mat<f64>, &Mat<f64>),
-    ) -> Result<Check, EigenError> {
-        let (ops, len) = (self.ops, basis.len);
-        let (theta, y) = sym_eigen(&h.get(0..len, 0..len).to_owned())?;
-        let order: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
-        let check = self.nev.min(order.len());
-        let (q, mq, r) = next;
-        let mut z = ops.apply_block(Which::K, q.as_ref());
-        z -= self.shift * mq;
-        let g = z.transpose() * &z;
-        let mut estimated = Vec::with_capacity(check);
-        let mut worst = 0.0;
-        for &o in order.iter().take(check) {
-            let lambda = self.shift + 1.0 / theta[o];
-            let c = r * Mat::from_fn(last.len(), 1, |i, _| y[(last.start + i, o)]);
-            let cgc = (c.transpose() * &g * &c)[(0, 0)].max(0.0);
-            let bound = cgc.sqrt() / theta[o] * ops.m_norm.sqrt()
-                / (ops.k_norm + lambda.abs() * ops.m_norm);
-            if !bound.is_finite() {
-                return Err(EigenError::NonFinite);
-            }
-            if bound > self.options.tolerance {
-                worst = bound;
-                break;
-            }
-            estimated.push((lambda, estimated.len(), bound));
-        }
-        if !select(ops, &estimated, self.options.count).complete {
-            return Ok(Check::Converged(estimated.len(), worst));
-        }
-        self.verify(basis, &theta, &y, &order, estimated.len())
-    }
-
-    /// Forms the Ritz vectors of the first `check` pairs of `order` (every positive theta,
-    /// descending) and checks them explicitly; the next ones up to [`super::warm_guard`] are
-    /// formed too, unchecked, as guard vectors for a later warm start.
-    fn verify(
-        &self,
-        basis: &Basis,
-        theta: &[f64],
-        y: &Mat<f64>,
-        order: &[usize],
-        check: usize,
-    ) -> Result<Check, EigenError> {
-        let len = basis.len;
-        let width = (check + super::warm_guard(self.nev)).min(order.len());
-        let ysel = Mat::from_fn(len, width, |i, j| y[(i, order[j])]);
-        let x = tall_times_small(basis.v.get(.., 0..len), ysel.as_ref());
-        let lambdas: Vec<f64> = order[..check]
-            .iter()
-            .map(|&o| self.shift + 1.0 / theta[o])
-            .collect();
-        let res = self.ops.block_residuals(&lambdas, x.get(.., 0..check));
-        let mut pairs = Vec::with_capacity(check);
-        let mut worst = 0.0;
-        for (j, (&lambda, &r)) in lambdas.iter().zip(&res).enumerate() {
-            if !r.is_finite() {
-                return Err(EigenError::NonFinite);
-            }
-            if r > self.options.tolerance {
-                worst = r;
-                break;
-            }
-            pairs.push((lambda, j, r));
-        }
-        let sel = select(self.ops, &pairs, self.options.count);
-        if !sel.complete {
-            return Ok(Check::Converged(pairs.len(), worst));
-        }
-        let timings = super::SolveTimings {
-            setup_ms: 0.0,
-            iterate_ms: self.started.elapsed().as_secs_f64() * 1e3,
-        };
-        Ok(Check::Done(Box::new(solution(
-            &pairs,
-            &sel,
-            x.as_ref(),
-            timings,
-            self.restarts,
-            super::SolverKind::Lanczos,
-        ))))
-    }
-}
-
 /// Basis length of the first convergence check: the wanted pairs plus two blocks (fewer
 /// vectors cannot hold `nev` converged pairs of a block method).
 fn first_check(nev: usize, b: usize) -> usize {
@@ -522,7 +409,14 @@ pub fn run(
             };
             h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
             if basis.len >= next_check {
-                match checker.run(&basis, &h, cols.clone(), (&q, &mq, &r))? {
+                let next = NextBlock {
+                    q: &q,
+                    mq: &mq,
+                    r: &r,
+                    last: cols.clone(),
+                };
+                let len = basis.len;
+                match checker.run(&basis, &h.get(0..len, 0..len).to_owned(), &next)? {
                     Check::Done(solution) => return Ok(*solution),
                     Check::Converged(converged, _) => {
                         next_check =
@@ -541,18 +435,23 @@ pub fn run(
             fresh = at;
         };
         let len = basis.len;
-        let (theta, y) = sym_eigen(&h.get(0..len, 0..len).to_owned())?;
-        // Descending theta = ascending lambda.
-        let order: Vec<usize> = (0..len).rev().filter(|&i| theta[i] > 0.0).collect();
-        // The estimates can be pessimistic: a full basis is always checked explicitly.
+        let next = NextBlock {
+            q: &q_res,
+            mq: &mq_res,
+            r: &r_res,
+            last: last.clone(),
+        };
+        let ritz = RitzPairs::new(ops, shift, &h.get(0..len, 0..len).to_owned(), &next, nev)?;
+        let (theta, y, order) = (&ritz.theta, &ritz.y, &ritz.order);
+        // The estimates can be pessimistic: a full basis is always checked with formed vectors.
         let check = nev.min(order.len());
-        let rigid = match checker.verify(&basis, &theta, &y, &order, check)? {
+        let rigid = match checker.verify(&basis, &ritz, check)? {
             Check::Done(solution) => return Ok(*solution),
             Check::Converged(c, w) => {
                 (converged_count, worst) = (c, w);
-                let lambdas: Vec<f64> =
-                    order[..c].iter().map(|&o| shift + 1.0 / theta[o]).collect();
-                lambdas.iter().filter(|&&l| ops.is_rigid(l)).count()
+                (0..c)
+                    .filter(|&j| ops.is_rigid(ritz.lambda(shift, j)))
+                    .count()
             }
         };
         // Not done: how many pairs are wanted now that the rigid count is known?
