@@ -16,6 +16,7 @@
 //! [`RIGID_RELATIVE`] times the matrices' scale `trace K / trace M`), never by counting parts,
 //! and dropped from the solution.
 
+pub mod band;
 pub mod factor;
 pub mod lanczos;
 pub mod lobpcg;

@@ -376,6 +376,7 @@ pub fn run(
         nev,
         started: Instant::now(),
         restarts: 0,
+        band: Some(b),
     };
     let mut basis = Basis::new(n, basis_cap(nev, b, n));
     let mut h = Mat::<f64>::zeros(basis.cap(), basis.cap());
@@ -441,8 +442,16 @@ pub fn run(
             r: &r_res,
             last: last.clone(),
         };
-        let ritz = RitzPairs::new(ops, shift, &h.get(0..len, 0..len).to_owned(), &next, nev)?;
-        let (theta, y, order) = (&ritz.theta, &ritz.y, &ritz.order);
+        let ritz = RitzPairs::new(
+            ops,
+            shift,
+            &h.get(0..len, 0..len).to_owned(),
+            &next,
+            nev,
+            None,
+        )?;
+        let (theta, order) = (&ritz.theta, &ritz.order);
+        let y = ritz.y.as_ref().expect("the dense decomposition");
         // The estimates can be pessimistic: a full basis is always checked with formed vectors.
         let check = nev.min(order.len());
         let rigid = match checker.verify(&basis, &ritz, check)? {
@@ -463,6 +472,9 @@ pub fn run(
             ModeCount::Below(_) => nev,
         };
         checker.nev = nev;
+        // The restarted projected matrix is an arrow (kept Ritz values, their coupling to
+        // the residual block), not a band.
+        checker.band = None;
         if nev + 2 * b > n {
             return Err(EigenError::TooFewDofs {
                 dofs: n,
