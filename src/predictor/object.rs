@@ -141,7 +141,8 @@ impl PredictedObject {
                 unit,
                 std::array::from_fn(|d| {
                     let ch = d * BANDS + b;
-                    (outputs[ch] > 0.0).then_some(outputs[MASK_CHANNELS + ch].clamp(0.0, 1.0))
+                    (outputs[ch] > super::MASK_LOGIT_THRESHOLD)
+                        .then_some(outputs[MASK_CHANNELS + ch].clamp(0.0, 1.0))
                 }),
             )
         };
