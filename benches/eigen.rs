@@ -4,7 +4,7 @@
 //! `cargo bench --bench eigen` runs criterion over the kernels, then prints a table of whole
 //! solves (time split: assembly, factorisation or multigrid setup, iterations) for a solid
 //! sphere and a hollow bowl (wall 2 voxels) in a 32^3 grid, 20 and 80 modes, residual 1e-6
-//! (seed 001 Table 1), every solver and element, plus the 64^3 sphere.
+//! (Jin et al. 2022, Table 1), every solver and element, plus the 64^3 sphere.
 //! `cargo bench --bench eigen -- --table` prints only the table; `--quick` only the 32^3 rows
 //! with 20 modes.
 

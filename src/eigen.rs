@@ -3,11 +3,11 @@
 //! Where it sits: after [`crate::fem`] assembly, before [`crate::modal`] turns eigenpairs into
 //! modes. Two solvers share one contract ([`EigenOptions`] in, [`EigenSolution`] or a typed
 //! [`EigenError`] out): shift-invert block Lanczos on a sparse Cholesky factorisation
-//! ([`lanczos`]), and LOBPCG ([`lobpcg`], seed 001 sec. 4.2.4) preconditioned by geometric
+//! ([`lanczos`]), and LOBPCG ([`lobpcg`], Jin et al. 2022, sec. 4.2.4) preconditioned by geometric
 //! multigrid on the voxel grid ([`multigrid`]); and, for sculpting edits, LOBPCG with the exact
 //! shift-invert preconditioner from the previous shape's modes ([`warm`]). All stop on the
 //! residual criterion of
-//! NeuralSound (seed 001 eq. 6, left term) and report it per mode:
+//! NeuralSound (Jin et al. 2022, eq. 6, left term) and report it per mode:
 //! `||K v - lambda M v|| / ((||K|| + |lambda| ||M||) ||v||)`, with the matrix 2-norms bounded by
 //! their infinity norms (symmetric matrices), which makes the test slightly stricter.
 //!
@@ -41,7 +41,7 @@ pub enum Which {
 /// near 1e-8 of it.
 pub const RIGID_RELATIVE: f64 = 1e-10;
 
-/// Default residual tolerance (seed 001 eq. 6): the papers' 32^3 benchmark uses 1e-6.
+/// Default residual tolerance (Jin et al. 2022, eq. 6): the papers' 32^3 benchmark uses 1e-6.
 pub const DEFAULT_TOLERANCE: f64 = 1e-6;
 
 /// Hard cap on the number of modes one solve returns.
@@ -114,7 +114,7 @@ impl SolverKind {
 pub struct EigenOptions {
     /// How many modes.
     pub count: ModeCount,
-    /// Residual tolerance (seed 001 eq. 6).
+    /// Residual tolerance (Jin et al. 2022, eq. 6).
     pub tolerance: f64,
     /// Block size (vectors advanced together).
     pub block_size: usize,
@@ -149,7 +149,7 @@ pub struct EigenSolution {
     pub eigenvalues: Vec<f64>,
     /// M-orthonormal eigenvectors, one column each.
     pub vectors: Mat<f64>,
-    /// Residual (seed 001 eq. 6) of each pair.
+    /// Residual (Jin et al. 2022, eq. 6) of each pair.
     pub residuals: Vec<f64>,
     /// Number of zero-frequency (rigid-body) modes found and dropped.
     pub rigid_modes: usize,
@@ -265,7 +265,7 @@ impl<'a> Operators<'a> {
         sparse::spmv(self.pattern, self.m, x, y)
     }
 
-    /// Residual of seed 001 eq. 6 for one pair; `scratch` holds two vectors of `dofs()`.
+    /// Residual of Jin et al. 2022, eq. 6 for one pair; `scratch` holds two vectors of `dofs()`.
     pub fn residual(&self, lambda: f64, x: &[f64], scratch: &mut [f64]) -> f64 {
         let n = self.dofs();
         let (kx, mx) = scratch.split_at_mut(n);
@@ -303,7 +303,7 @@ impl<'a> Operators<'a> {
         Mat::from_fn(n, w, |i, j| out[i * w + j])
     }
 
-    /// Residuals (seed 001 eq. 6) of the pairs `(lambdas[j], x[:, j])`, by block products.
+    /// Residuals (Jin et al. 2022, eq. 6) of the pairs `(lambdas[j], x[:, j])`, by block products.
     pub fn block_residuals(&self, lambdas: &[f64], x: MatRef<'_, f64>) -> Vec<f64> {
         let kx = self.apply_block(Which::K, x);
         let mx = self.apply_block(Which::M, x);

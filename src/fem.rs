@@ -7,8 +7,8 @@
 //! model is assembled in *reference units* (`E = 1`, `rho = 1`, voxel edge `h = 1`): physical
 //! matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical object are
 //! `E / (rho h^2)` times the reference ones and its mass-normalised modes are `(rho h^3)^(-1/2)`
-//! times the reference ones (the exact form of Deep-Modal's scaling laws, seed 000 eq. 10-12;
-//! [`crate::modal`] applies them).
+//! times the reference ones (the exact form of Deep-Modal's scaling laws, Jin et al. 2020, eq.
+//! 10-12; [`crate::modal`] applies them).
 
 pub mod cut;
 pub mod element;

@@ -335,7 +335,8 @@ mod tests {
             assert!(m.source.len() > 20, "{name} needs a citation");
             assert!(!m.damping_models.is_empty());
         }
-        // Sterling & Lin's measured materials carry all three fitted models (seed 004 Table 1).
+        // Sterling & Lin's measured materials carry all three fitted models (Sterling and Lin 2016,
+        // Table 1).
         for name in [
             "sl-plastic-1",
             "sl-plastic-2",

@@ -6,15 +6,16 @@
 //! is solved once in reference units (`E = 1`, `rho = 1`, voxel edge 1) and cached by shape hash.
 //! The cheap part, [`ModeBasis::voice`], applies a material, a size and a strike.
 //!
-//! Scaling (Deep-Modal, seed 000 eq. 10-12, in the exact form the FEM gives): the physical
+//! Scaling (Deep-Modal, Jin et al. 2020, eq. 10-12, in the exact form the FEM gives): the physical
 //! matrices are `K = E h K_ref` and `M = rho h^3 M_ref`, so `omega^2 = omega_ref^2 E / (rho h^2)`
 //! (eq. 12: `omega ~ sigma1^(1/2) sigma2^(-1/2) sigma3^(-1)`) and the mass-normalised modes are
 //! `phi = phi_ref / sqrt(rho h^3)` (eq. 10-11's `sigma2^(-1/2) sigma3^(-3/2)`).
 //!
-//! Gains (seed 000 eq. 7): a unit impulse `f` at a surface point excites mode `i` with amplitude
-//! `a_i = phi_i(p) . f / omega_d,i` (the displacement impulse response of a mass-normalised
-//! mode), where `phi_i(p)` interpolates the mode over the struck voxel face with the element's
-//! own shape functions. By linearity any force is the sum of three unit forces (eq. 7, 9).
+//! Gains (Jin et al. 2020, eq. 7): a unit impulse `f` at a surface point excites mode `i` with
+//! amplitude `a_i = phi_i(p) . f / omega_d,i` (the displacement impulse response of a
+//! mass-normalised mode), where `phi_i(p)` interpolates the mode over the struck voxel face with
+//! the element's own shape functions. By linearity any force is the sum of three unit forces (eq.
+//! 7, 9).
 
 use crate::eigen::{self, EigenError, EigenOptions, EigenSolution, SolverKind};
 use crate::fem::{ElementKind, FemModel};
@@ -197,7 +198,7 @@ pub struct VoicedMode {
     pub damped: DampedMode,
     /// Impulse amplitude for the strike.
     pub gain: f64,
-    /// Residual of the eigenpair (seed 001 eq. 6).
+    /// Residual of the eigenpair (Jin et al. 2022, eq. 6).
     pub residual: f64,
 }
 
@@ -304,14 +305,14 @@ impl ModeBasis {
         w * w * material.density_kg_m3 * voxel_size_m * voxel_size_m / material.youngs_modulus_pa
     }
 
-    /// Physical eigenvalues `omega^2` for a material and voxel size (seed 000 eq. 12).
+    /// Physical eigenvalues `omega^2` for a material and voxel size (Jin et al. 2020, eq. 12).
     pub fn eigenvalues(&self, material: &Material, voxel_size_m: f64) -> Vec<f64> {
         let s = material.youngs_modulus_pa / (material.density_kg_m3 * voxel_size_m * voxel_size_m);
         self.solution.eigenvalues.iter().map(|l| l * s).collect()
     }
 
     /// Mass-normalised physical mode values at the hit, dotted with the force direction
-    /// (seed 000 eq. 7, 10-11), one per mode.
+    /// (Jin et al. 2020, eq. 7, 10-11), one per mode.
     pub fn modal_forces(
         &self,
         material: &Material,

@@ -3,8 +3,8 @@
 //! Where it sits: the output of every mode source (the FEM solution voiced by
 //! [`crate::modal::ModeBasis`], JSON files, the analytic demo in [`crate::demo`]) and the input
 //! of the banks in [`crate::synth`]. A mode `i` struck at `t = 0` rings as
-//! `q_i(t) = g_i e^(-d_i t) sin(2 pi f_i t)` (Deep-Modal, seed 000 eq. 3 and 13, with the initial
-//! phase zero because the object starts at rest).
+//! `q_i(t) = g_i e^(-d_i t) sin(2 pi f_i t)` (Deep-Modal, Jin et al. 2020, eq. 3 and 13, with the
+//! initial phase zero because the object starts at rest).
 //!
 //! [`ModeSet`] stores modes structure-of-arrays in `f64`. Before a bank sees them they go through
 //! [`ModeSet::playable`], which culls what cannot or need not be played (at or above Nyquist,

@@ -5,9 +5,9 @@
 //! from a closed OBJ/STL mesh ([`mesh`]); boolean operations, hollowing and face-connected
 //! components live in [`ops`]. [`crate::fem`] turns each occupied voxel into one hexahedral
 //! element, so every element is the same cube of edge [`VoxelGrid::voxel_size_m`] (the hexahedral
-//! voxel FEM of NeuralSound, seed 001 sec. 3.1, and Deep-Modal, seed 000 sec. 4.1). Voxels cut
-//! by a smooth surface keep how full they are ([`fill`]), and their elements integrate over
-//! the filled part only.
+//! voxel FEM of NeuralSound, Jin et al. 2022, sec. 3.1, and Deep-Modal, Jin et al. 2020, sec. 4.1).
+//! Voxels cut by a smooth surface keep how full they are ([`fill`]), and their elements integrate
+//! over the filled part only.
 
 pub mod fill;
 pub mod mesh;

@@ -2,7 +2,7 @@
 //! must satisfy: LOBPCG with multigrid (an iterative method on products with K and M) must
 //! reproduce shift-invert Lanczos on a direct factorisation (a different algorithm on a
 //! different operator), and both must return M-orthonormal vectors whose recomputed residuals
-//! (seed 001 eq. 6) meet the tolerance.
+//! (Jin et al. 2022, eq. 6) meet the tolerance.
 
 use modalforge::eigen::{self, EigenOptions, EigenSolution, ModeCount, SolverKind};
 use modalforge::fem::sparse::{self, RowBlock};

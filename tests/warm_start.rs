@@ -1,11 +1,11 @@
 //! Sculpting edits: the warm-started exact solve and the instant carried answer against cold
 //! solves of the same edited shape (an independent computation from a random start).
 //!
-//! Tolerances: both exact solves stop at the residual 1e-6 (seed 001 eq. 6); an eigenvalue's
-//! error is bounded by the residual squared over the gap (Parlett, Thm. 11.7.1), so two exact
-//! answers agree to well under 1e-6 in frequency (measured 1.2e-9 here). The carried answer is
-//! not exact: its frequencies must be within 1e-3 (measured ~1e-4 here; the bench sees 1e-5
-//! to 3e-3 on the presets), the ten-times margin a stated expectation allows.
+//! Tolerances: both exact solves stop at the residual 1e-6 (Jin et al. 2022, eq. 6); an
+//! eigenvalue's error is bounded by the residual squared over the gap (Parlett, Thm. 11.7.1), so
+//! two exact answers agree to well under 1e-6 in frequency (measured 1.2e-9 here). The carried
+//! answer is not exact: its frequencies must be within 1e-3 (measured ~1e-4 here; the bench sees
+//! 1e-5 to 3e-3 on the presets), the ten-times margin a stated expectation allows.
 
 use modalforge::eigen::warm;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};

@@ -48,7 +48,7 @@ pub enum MaterialChoice {
     #[id = "polycarbonate"]
     #[name = "Polycarbonate"]
     Polycarbonate,
-    /// Measured aluminium (Sterling & Lin, seed 004 Table 1).
+    /// Measured aluminium (Sterling and Lin 2016, Table 1).
     #[id = "sl-aluminum"]
     #[name = "Aluminium (measured)"]
     SlAluminum,

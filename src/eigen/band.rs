@@ -11,7 +11,8 @@
 //! The method is the classical one (e.g. LAPACK's `dsbtrd` and `dsteqr`, EISPACK's `tql2`):
 //! - Band to tridiagonal by Givens rotations with bulge chasing (Rutishauser 1963, Schwarz
 //!   1968): zero the outermost diagonal element by element, chase each bulge down the band.
-//! - Tridiagonal eigenvalues by the implicit QL algorithm with Wilkinson-like shifts.
+//! - Tridiagonal eigenvalues by the implicit QL algorithm with Wilkinson-like shifts (Bowdler,
+//!   Martin, Reinsch and Wilkinson 1968).
 //! - Every rotation of both stages is applied to the requested rows of the accumulated
 //!   orthogonal matrix only (`rows x n`, not `n x n`), which is what makes it cheap.
 //!

@@ -1,4 +1,4 @@
-//! LOBPCG (Knyazev 2001; NeuralSound, seed 001 sec. 4.2.4) preconditioned by geometric
+//! LOBPCG (Knyazev 2001; NeuralSound, Jin et al. 2022, sec. 4.2.4) preconditioned by geometric
 //! multigrid ([`super::multigrid`]).
 //!
 //! Where it sits: the iterative alternative to [`super::lanczos`] behind [`super::solve`]; it
@@ -260,7 +260,7 @@ pub(crate) struct Converged {
     /// Ritz values, ascending.
     pub theta: Vec<f64>,
     x: Images,
-    /// Residuals (seed 001 eq. 6).
+    /// Residuals (Jin et al. 2022, eq. 6).
     pub residuals: Vec<f64>,
 }
 
@@ -283,7 +283,7 @@ impl Converged {
     }
 }
 
-/// Per-column residuals of seed 001 eq. 6 for the block's columns (`theta` holds their Ritz
+/// Per-column residuals of Jin et al. 2022, eq. 6 for the block's columns (`theta` holds their Ritz
 /// values).
 fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
     let (m, f) = (xb.width, xb.first);

@@ -1,8 +1,8 @@
 //! Warm starts: the modes of a sculpting edit, from the modes of the shape before it.
 //!
 //! Where it sits: beside [`super::lanczos`] and [`super::lobpcg`], behind the same contract
-//! ([`EigenOptions`] in, [`EigenSolution`] out, the residual criterion of NeuralSound, seed 001
-//! eq. 6). Two answers start from the previous shape's solution:
+//! ([`EigenOptions`] in, [`EigenSolution`] out, the residual criterion of NeuralSound, Jin et al.
+//! 2022 eq. 6). Two answers start from the previous shape's solution:
 //! - [`ritz`], the instant one ([`crate::modal::ModeBasis::carried_ritz`], played by the
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
 //!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation;
@@ -10,7 +10,7 @@
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
 //!
-//! [`solve`] step by step (the "mixed solver" idea of NeuralSound, seed 001 sec. 4: a good
+//! [`solve`] step by step (the "mixed solver" idea of NeuralSound, Jin et al. 2022, sec. 4: a good
 //! start block makes an iterative eigensolver converge in a few steps):
 //! 1. [`transfer`] carries the previous eigenvectors to the new mesh: a node that persists
 //!    keeps its values, a new node takes the mean of its persisting lattice neighbours. The

@@ -361,7 +361,7 @@ impl AudioEngine {
             voice.pitch = pitch;
         }
         voice.muted = false;
-        // The modes this strike excites, with their gains (seed 000 eq. 7).
+        // The modes this strike excites, with their gains (Jin et al. 2020, eq. 7).
         let h = self.voicing.voxel_size_m(obj.extent, pitch);
         self.struck.clear();
         let mut loudest: f64 = 0.0;

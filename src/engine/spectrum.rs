@@ -3,10 +3,10 @@
 //!
 //! Where it sits: read by views (the plugin editor) off the audio thread, from the newest
 //! solved object ([`super::EngineControl::latest_object`]) and the voicing the knobs describe.
-//! It applies the same scaling laws and strike gains as [`super::AudioEngine`] (seed 000 eq. 7
-//! and 12: `omega^2 = lambda E / (rho h^2)`, gain `phi(x) . d / (sqrt(rho h^3) omega_d)` times
-//! the mallet's modal factor), so the lines are what the next velocity-1 strike at the object's
-//! own size plays.
+//! It applies the same scaling laws and strike gains as [`super::AudioEngine`] (Jin et al. 2020,
+//! eq. 7 and 12: `omega^2 = lambda E / (rho h^2)`, gain `phi(x) . d / (sqrt(rho h^3) omega_d)`
+//! times the mallet's modal factor), so the lines are what the next velocity-1 strike at the
+//! object's own size plays.
 
 use super::object::ObjectModes;
 use super::voicing::{tune, Voicing};

@@ -3,9 +3,9 @@
 //!
 //! Where it sits: the audio side of [`crate::engine`] holds one [`Voicing`]; every mode a voice
 //! plays is tuned from its reference eigenvalue by [`tune`]: the scaling law
-//! `omega^2 = omega_ref^2 E / (rho h^2)` (seed 000 eq. 12, [`crate::modal`]) and the damping
-//! model's `c(omega^2)` (seed 004 eq. 10-16). Everything here is `Copy` and allocation-free, so a
-//! knob turned in the DAW reaches the ringing modes within one block.
+//! `omega^2 = omega_ref^2 E / (rho h^2)` (Jin et al. 2020, eq. 12, [`crate::modal`]) and the
+//! damping model's `c(omega^2)` (Sterling and Lin 2016, eq. 10-16). Everything here is `Copy` and
+//! allocation-free, so a knob turned in the DAW reaches the ringing modes within one block.
 
 use crate::material::{DampedMode, Damping, Material};
 use std::f64::consts::TAU;
@@ -19,21 +19,22 @@ pub const MAX_CAUGHEY_TERMS: usize = 6;
 /// A damping model without heap data (the engine's copy of [`Damping`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DampingParams {
-    /// `c = alpha1 + alpha2 omega^2` (seed 004 eq. 12).
+    /// `c = alpha1 + alpha2 omega^2` (Sterling and Lin 2016, eq. 12).
     Rayleigh {
         /// 1/s.
         alpha1: f64,
         /// s.
         alpha2: f64,
     },
-    /// `c = sum_j eta_j omega^(2j)`, the first `terms` coefficients (seed 004 eq. 13).
+    /// `c = sum_j eta_j omega^(2j)`, the first `terms` coefficients (Sterling and Lin 2016, eq.
+    /// 13).
     Caughey {
         /// Coefficients `eta_0..`.
         eta: [f64; MAX_CAUGHEY_TERMS],
         /// How many are used.
         terms: usize,
     },
-    /// `c = mu1 omega^(2 mu2)` (seed 004 eq. 16).
+    /// `c = mu1 omega^(2 mu2)` (Sterling and Lin 2016, eq. 16).
     PowerLaw {
         /// Coefficient.
         mu1: f64,
@@ -232,14 +233,15 @@ impl Voicing {
         self.size_m / extent.max(1) as f64 / pitch
     }
 
-    /// Gain of a mode struck with unit impulse (seed 000 eq. 7): its reference-unit modal
+    /// Gain of a mode struck with unit impulse (Jin et al. 2020, eq. 7): its reference-unit modal
     /// force made physical (`1 / sqrt(rho h^3)`) over its damped angular frequency.
     pub fn modal_gain(&self, reference_force: f64, voxel_size_m: f64, freq_hz: f64) -> f64 {
         let h = voxel_size_m;
         reference_force / ((self.density_kg_m3 * h * h * h).sqrt() * TAU * freq_hz)
     }
 
-    /// Frequency scale `E / (rho h^2)` from reference eigenvalues to `omega^2` (seed 000 eq. 12).
+    /// Frequency scale `E / (rho h^2)` from reference eigenvalues to `omega^2` (Jin et al. 2020,
+    /// eq. 12).
     pub fn eigen_scale(&self, voxel_size_m: f64) -> f64 {
         self.youngs_modulus_pa / (self.density_kg_m3 * voxel_size_m * voxel_size_m)
     }

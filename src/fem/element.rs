@@ -6,15 +6,16 @@
 //! (the Jacobian is `h/2 I`, so `B ~ 1/h` and `dV ~ h^3`). Local node `a` sits at lattice offset
 //! `(ax, ay, az) / p` in the cube, `a = ax + (p+1) (ay + (p+1) az)`; local DOF `3 a + c`.
 //!
-//! - **hex8** (`p = 1`, 2x2x2 Gauss): the papers' ground truth (seed 001 sec. 3.1); it shear-locks
-//!   in bending, badly where walls are 1-4 voxels thick.
+//! - **hex8** (`p = 1`, 2x2x2 Gauss): the papers' ground truth (Jin et al. 2022, sec. 3.1); it
+//!   shear-locks in bending, badly where walls are 1-4 voxels thick.
 //! - **hex8 with incompatible modes** (Wilson, Taylor, Doherty and Ghaboussi 1973; Taylor, Beresford
 //!   and Wilson 1976): three bubble modes `1 - xi_i^2` per displacement component enrich the strain
 //!   field so pure bending is represented exactly; the 9 internal DOFs are condensed out
 //!   statically, so the element has hex8's nodes and cost. On a cube (constant Jacobian) it
 //!   passes the patch test without Taylor's correction.
 //! - **hex27** (`p = 2`, 3x3x3 Gauss, exact for the mass and stiffness integrands): quadratic
-//!   Lagrange; higher-order elements are much more accurate than linear ones (seed 003 sec. 3.3).
+//!   Lagrange; higher-order elements are much more accurate than linear ones (Jin et al. 2024, sec.
+//!   3.3).
 
 /// The finite element used on every voxel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -1,29 +1,31 @@
-//! Proportional damping models (Sterling & Lin, seed 004 sec. 3).
+//! Proportional damping models (Sterling and Lin 2016, sec. 3).
 //!
 //! Every model here is *generalized proportional damping*: the damping matrix is diagonalised by
 //! the undamped modes, so each mode's viscous coefficient is a function of its own eigenvalue
-//! `lambda = omega_n^2` (seed 004 eq. 14, `c_i = beta(omega_n^2)`). The mode then rings as
-//! `a e^(-d t) cos(omega_d t)` with `d = c / 2` (eq. 10) and `omega_d = sqrt(omega_n^2 - d^2)`
-//! (eq. 11); a mode with `d >= omega_n` does not oscillate (overdamped) and is never played.
+//! `lambda = omega_n^2` (Sterling and Lin 2016, eq. 14, `c_i = beta(omega_n^2)`). The mode then
+//! rings as `a e^(-d t) cos(omega_d t)` with `d = c / 2` (eq. 10) and `omega_d = sqrt(omega_n^2 -
+//! d^2)` (eq. 11); a mode with `d >= omega_n` does not oscillate (overdamped) and is never played.
 
 use std::sync::Arc;
 
 /// A damping model: the map from a mode's eigenvalue to its viscous coefficient `c`.
 #[derive(Clone)]
 pub enum Damping {
-    /// Rayleigh damping `C = alpha1 M + alpha2 K`: `c = alpha1 + alpha2 omega^2` (seed 004 eq. 6, 12).
+    /// Rayleigh damping `C = alpha1 M + alpha2 K`: `c = alpha1 + alpha2 omega^2` (Sterling and Lin
+    /// 2016, eq. 6, 12).
     Rayleigh {
         /// Mass-proportional term, 1/s.
         alpha1: f64,
         /// Stiffness-proportional term, s.
         alpha2: f64,
     },
-    /// Caughey series `c = sum_j eta_j omega^(2j)`, `j = 0..n` (seed 004 eq. 7, 13), any order.
+    /// Caughey series `c = sum_j eta_j omega^(2j)`, `j = 0..n` (Sterling and Lin 2016, eq. 7, 13),
+    /// any order.
     Caughey {
         /// `eta_0, eta_1, ...`; `eta_j` has units s^(2j-1).
         eta: Vec<f64>,
     },
-    /// Power law `c = mu1 omega^(2 mu2)` (seed 004 eq. 16).
+    /// Power law `c = mu1 omega^(2 mu2)` (Sterling and Lin 2016, eq. 16).
     PowerLaw {
         /// Coefficient.
         mu1: f64,
@@ -74,9 +76,9 @@ impl Damping {
         }
     }
 
-    /// The damped mode of eigenvalue `omega_n^2` (seed 004 eq. 10-11). A negative or non-finite
-    /// coefficient (a Caughey series can go negative far outside its fitted band) is clamped to
-    /// zero: a mode is never amplified.
+    /// The damped mode of eigenvalue `omega_n^2` (Sterling and Lin 2016, eq. 10-11). A negative or
+    /// non-finite coefficient (a Caughey series can go negative far outside its fitted band) is
+    /// clamped to zero: a mode is never amplified.
     pub fn damp(&self, omega_n_sq: f64) -> DampedMode {
         let c = self.coefficient(omega_n_sq);
         let d = if c.is_finite() {

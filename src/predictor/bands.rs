@@ -1,4 +1,4 @@
-//! Deep-Modal's band representation of a shape's modes (Jin, Li and Manocha 2020, sec. 3-4),
+//! Deep-Modal's band representation of a shape's modes (Jin et al. 2020, sec. 3-4),
 //! with exact band frequencies: the predictor's labels and its output.
 //!
 //! Where it sits: [`BandEncoding::encode`] turns a FEM [`ModeBasis`] of a shape in the 32^3

@@ -1,4 +1,4 @@
-//! Deep-Modal's comparison method: shape matching (Jin, Li and Manocha 2020, sec. 5.2). A
+//! Deep-Modal's comparison method: shape matching (Jin et al. 2020, sec. 5.2). A
 //! shape's answer is the FEM labels of the training shape nearest to it by an embedding.
 //!
 //! Where it sits: `modalforge predictor eval` scores it beside the network, so the network's

@@ -3,7 +3,7 @@
 //!
 //! Where it sits: [`score`] compares two [`BandEncoding`]s of one object (the prediction and
 //! the FEM labels); [`evaluate`] runs the network over held-out records and averages. The
-//! definitions follow Deep-Modal (Jin, Li and Manocha 2020, sec. 5.2, Table 1): recall and
+//! definitions follow Deep-Modal (Jin et al. 2020, sec. 5.2, Table 1): recall and
 //! precision of the masks and the mean squared error of the normalised log-amplitudes, each
 //! averaged per object, here over every struck cell and force direction of the object (the
 //! paper draws one random contact position per object: the same expectation, less noise). The

@@ -5,7 +5,7 @@
 //! expensive part) and [`Trunk::strike`] per strike (one cell's 1x1 head: microseconds);
 //! [`super::train`] fits it with [`ModeNet::loss`].
 //!
-//! The architecture follows Deep-Modal (Jin, Li and Manocha 2020, sec. 4.2: an encoder of
+//! The architecture follows Deep-Modal (Jin et al. 2020, sec. 4.2: an encoder of
 //! strided convolutions, a decoder of transposed convolutions with skip connections, a sound
 //! feature map at 16^3), made lean for the CPU:
 //! - a 2x2x2 patch convolution takes the 32^3 input straight to the 16^3 strike grid;

@@ -1,7 +1,7 @@
 //! Training the predictor's network on the CPU: `modalforge train`.
 //!
 //! Where it sits: reads the records [`super::dataset`] wrote, fits [`ModeNet`] with Adam on
-//! burn's flex backend with autodiff (Deep-Modal, Jin, Li and Manocha 2020, sec. 5.1: Adam,
+//! burn's flex backend with autodiff (Deep-Modal, Jin et al. 2020, sec. 5.1: Adam,
 //! a learning rate halved on a schedule, eq. 8's loss), and writes checkpoints a later run
 //! resumes from: `model.bpk` (burnpack, the weights the product ships), `optimizer.bpk` and
 //! `state.json` (epoch, step, learning rate, the validation history).

@@ -2,11 +2,11 @@
 //!
 //! Where it sits: takes [`PlayableModes`] (or any set of biquads) and a force signal (a strike's
 //! [`ForcePulse`](super::ForcePulse), scraping or rolling [`NoiseForce`](super::NoiseForce), or
-//! the user's own), produces audio. It is a filter bank in the arrangement of Diaz et al. (seed 002
+//! the user's own), produces audio. It is a filter bank in the arrangement of Diaz et al. (2023,
 //! eq. 3): `L` parallel branches, each a cascade of `M` biquads,
 //! `H(z) = sum_l prod_m H_lm(z)`, with each section
-//! `H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)` (seed 002 eq. 2 in pole/zero form:
-//! [`BiquadCoeffs::from_pole_zero`]).
+//! `H(z) = (b0 + b1 z^-1 + b2 z^-2) / (1 + a1 z^-1 + a2 z^-2)` (Diaz et al. 2023, eq. 2 in
+//! pole/zero form: [`BiquadCoeffs::from_pole_zero`]).
 //!
 //! A mode is the impulse-invariant resonator [`BiquadCoeffs::modal_resonator`]: its impulse
 //! response is exactly the oscillator bank's `g r^n sin(w n)`, so an impulse through this bank

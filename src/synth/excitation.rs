@@ -8,8 +8,8 @@
 //! `f(t) = pi/(2 tau) sin(pi t / tau)` for `0 <= t <= tau`, the usual stand-in for a Hertz contact.
 //! A mode with complex frequency `lambda = -d + i w` answers a force `f` with
 //! `q(t) = Im(e^(lambda t) F(lambda))` once the force is over, where
-//! `F(lambda) = integral f(s) e^(-lambda s) ds` (Deep-Modal, seed 000 eq. 2, solved per mode).
-//! For the half-sine, with `a = pi/tau`,
+//! `F(lambda) = integral f(s) e^(-lambda s) ds` (Deep-Modal, Jin et al. 2020, eq. 2, solved per
+//! mode). For the half-sine, with `a = pi/tau`,
 //! `F(lambda) = pi a (1 + e^(-lambda tau)) / (2 tau (lambda^2 + a^2))`: 1 for slow modes, falling
 //! off above `1/tau` Hz, so a soft (long) mallet excites fewer high modes.
 

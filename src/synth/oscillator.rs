@@ -3,7 +3,7 @@
 //! Where it sits: takes [`PlayableModes`] (after culling) and strikes, produces audio. Each strike
 //! adds `g_i v F_i(lambda) e^(lambda_i t)` to mode `i`'s complex amplitude and the bank plays the
 //! imaginary part, `q_i(t) = Im(...)`, which for an impulse is `g_i v e^(-d_i t) sin(2 pi f_i t)`
-//! (Deep-Modal, seed 000 eq. 3 and 13). Strikes add up: the system is linear.
+//! (Deep-Modal, Jin et al. 2020, eq. 3 and 13). Strikes add up: the system is linear.
 //!
 //! Drift: a plain f32 recurrence wanders off the analytic sine (rounding of its coefficients
 //! detunes it; over 10 s at 440 Hz the error reaches 1e-2 of the peak). The bank keeps each mode's

@@ -9,7 +9,7 @@
 //! the projected matrix `H` and the next block `Q` with its coupling `R`,
 //! `Op V = V H + Q R E_last^T`, so a Ritz pair `(theta, x = V y)` of `H` has
 //! `Op x - theta x = Q c`, `c = R y_last`. Multiplied by `-(K - sigma M) / theta` this is the
-//! residual of seed 001 eq. 6 itself, `K x - lambda M x = -(1 / theta) Z c` with
+//! residual of Jin et al. 2022, eq. 6 itself, `K x - lambda M x = -(1 / theta) Z c` with
 //! `Z = (K - sigma M) Q` and `lambda = sigma + 1 / theta`; one product of `K` with the `b`
 //! columns of `Q` and the Gram matrix `G = Z^T Z` give every pair's residual norm,
 //! `sqrt(c^T G c) / theta`, without forming the pair. Before the Ritz vectors are formed their
@@ -187,7 +187,7 @@ impl RitzCheck<'_> {
         Ok((estimated.len(), (!complete).then_some(worst)))
     }
 
-    /// `||K|| + |lambda| ||M||`, the residual's scale (seed 001 eq. 6).
+    /// `||K|| + |lambda| ||M||`, the residual's scale (Jin et al. 2022, eq. 6).
     fn scale(&self, lambda: f64) -> f64 {
         self.ops.k_norm + lambda.abs() * self.ops.m_norm
     }

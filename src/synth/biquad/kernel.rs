@@ -12,8 +12,8 @@
 //! it by several percent; in f64 the error is ~1e-10. When every numerator is `b1 z^-1` alone (modal
 //! resonators), a specialised loop drops the `b0` and `b2` terms: 4 operations per lane-sample.
 //!
-//! Branches (parallel filters, seed 002 eq. 3) are lanes; the stages of one branch run one after
-//! another on a per-group scratch signal, and the last stage of every branch is summed.
+//! Branches (parallel filters, Diaz et al. 2023, eq. 3) are lanes; the stages of one branch run one
+//! after another on a per-group scratch signal, and the last stage of every branch is summed.
 
 use crate::synth::simd::{Lanes, SimdBackend};
 
