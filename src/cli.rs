@@ -7,6 +7,7 @@
 //! a non-zero exit, never a panic. `chart` ([`chart`]) sweeps the solvers' speed against their
 //! accuracy.
 
+pub mod analyze;
 pub mod chart;
 pub mod object;
 pub mod predictor;
@@ -51,6 +52,8 @@ pub enum Command {
     /// The neural predictor's tools.
     #[command(subcommand)]
     Predictor(predictor::PredictorCommand),
+    /// Find the modes (frequency, decay, amplitude, phase) of a recorded strike.
+    Analyze(analyze::AnalyzeArgs),
 }
 
 /// Options of `modalforge dataset`.
@@ -188,6 +191,12 @@ pub enum CliError {
     /// Building or solving an object.
     #[error(transparent)]
     Object(#[from] object::ObjectError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Recording(#[from] crate::analysis::wav::WavError),
+    /// Analysing a recording.
+    #[error(transparent)]
+    Analysis(#[from] crate::analysis::AnalysisError),
 }
 
 fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
@@ -251,6 +260,7 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
             predictor::eval_command(&args)
         }
         Command::Modes(args) => modes_command(&args),
+        Command::Analyze(args) => analyze::analyze_command(&args),
         Command::Render(args) => {
             let json = args.json;
             let summary = render_command(&args)?;

@@ -9,6 +9,7 @@
 //! neural predictor's data representation and training set (its network is not built yet).
 #![deny(missing_docs)]
 
+pub mod analysis;
 pub mod buffer;
 pub mod cli;
 pub mod demo;
