@@ -13,11 +13,14 @@
 //! do not explain is reported (`residual_db`), and so is the noise level (`noise_floor_db`):
 //! a mode whose amplitude at the onset lies below it is not reported.
 //!
+//! The modes' decay rates are then fitted by the damping laws ([`damping_fit`]).
+//!
 //! Not yet built (issue 14): the second extraction method (iterative spectrogram peak picking,
-//! Sterling and Lin 2016), damping-law fits, material inference, resynthesis with a spectral
-//! refinement, and the plugin's "match a recording".
+//! Sterling and Lin 2016), material inference, resynthesis with a spectral refinement, and the
+//! plugin's "match a recording".
 
 pub mod bands;
+pub mod damping_fit;
 pub mod pencil;
 pub mod synthetic;
 pub mod wav;
@@ -49,6 +52,8 @@ pub struct Analysis {
     pub residual_db: f64,
     /// The noise level (RMS per sample), dB relative to the recording's peak.
     pub noise_floor_db: f64,
+    /// Damping laws fitted to the modes ([`damping_fit`]).
+    pub damping: damping_fit::DampingFits,
 }
 
 /// Settings of [`extract`].
@@ -194,7 +199,14 @@ pub fn extract(
     noise.sort_by(f64::total_cmp);
     let noise_rms = noise.get(noise.len() / 2).copied().unwrap_or(0.0);
     let residual_db = residual_db(&x[start..], fs, &modes);
+    let damping = damping_fit::fit(
+        &modes
+            .iter()
+            .map(|m| (m.freq_hz, m.decay_per_s))
+            .collect::<Vec<_>>(),
+    );
     Ok(Analysis {
+        damping,
         modes,
         onset_s,
         residual_db,

@@ -126,6 +126,31 @@ fn the_cli_analyzes_a_rendered_strike() {
             "{f} vs {w}"
         );
     }
+    // The demo bar is damped by Rayleigh's law (`demo::RAYLEIGH_ALPHA_PER_S`, `demo::RAYLEIGH_BETA_S`): the fit names
+    // it and gives its parameters back (to 1 %: the decay rates came back to 1e-3).
+    let analysis: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        analysis["damping"]["best"], "rayleigh",
+        "{}",
+        analysis["damping"]
+    );
+    let law = analysis["damping"]["laws"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|l| l["law"] == "rayleigh")
+        .unwrap();
+    let p: Vec<f64> = law["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        (p[0] / modalforge::demo::RAYLEIGH_ALPHA_PER_S - 1.0).abs() < 0.01
+            && (p[1] / modalforge::demo::RAYLEIGH_BETA_S - 1.0).abs() < 0.01,
+        "{p:?}"
+    );
     let modes = dir.join("found.json");
     std::fs::write(&modes, &out.stdout).unwrap();
     let again = run(&[

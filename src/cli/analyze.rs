@@ -14,7 +14,8 @@ pub struct AnalyzeArgs {
     #[arg(value_name = "REC.wav")]
     pub recording: PathBuf,
     /// Print JSON: {"modes":[{"freq_hz","decay_per_s","gain","phase"}...], "onset_s",
-    /// "residual_db", "noise_floor_db"}; readable by `render --modes`.
+    /// "residual_db", "noise_floor_db", "damping":{"laws":[...],"best"}}; readable by
+    /// `render --modes`.
     #[arg(long)]
     pub json: bool,
     /// Most modes reported (the loudest at the onset).
@@ -49,6 +50,20 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         out.push_str(&format!(
             "{:>12.3} {:>12.3} {:>12.3e} {:>8.3}\n",
             m.freq_hz, m.decay_per_s, m.gain, m.phase
+        ));
+    }
+    out.push_str("damping laws (c = 2 decay against lambda = omega_n^2):\n");
+    for law in &found.damping.laws {
+        let chosen = if found.damping.best == Some(law.law) {
+            "  <- best (BIC)"
+        } else {
+            ""
+        };
+        out.push_str(&format!(
+            "  {:<10} {:?}: decay rates within {:.1} % RMS{chosen}\n",
+            law.law,
+            law.parameters,
+            100.0 * law.rms_relative_error
         ));
     }
     Ok(out)

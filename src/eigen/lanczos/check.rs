@@ -82,6 +82,33 @@ impl RitzPairs {
         count: usize,
         band: Option<usize>,
     ) -> Result<Self, EigenError> {
+        let mut z = ops.apply_block(Which::K, next.q.as_ref());
+        z -= shift * next.mq;
+        let gram = z.transpose() * &z;
+        Self::with_gram(gram, h, next, count, band)
+    }
+
+    /// The same pairs with their full eigenvectors: from the band path's answer, the dense
+    /// decomposition (the Gram matrix, which depends only on the next block, is kept).
+    pub fn dense(
+        self,
+        h: &Mat<f64>,
+        next: &NextBlock<'_>,
+        count: usize,
+    ) -> Result<Self, EigenError> {
+        match self.y {
+            Some(_) => Ok(self),
+            None => Self::with_gram(self.gram, h, next, count, None),
+        }
+    }
+
+    fn with_gram(
+        gram: Mat<f64>,
+        h: &Mat<f64>,
+        next: &NextBlock<'_>,
+        count: usize,
+        band: Option<usize>,
+    ) -> Result<Self, EigenError> {
         let (theta, y, y_last_of) = match band {
             Some(kd) => {
                 let BandEigen { values, rows } = band_eigen(h, kd, next.last.start)?;
@@ -97,9 +124,6 @@ impl RitzPairs {
         let count = count.min(order.len());
         let y_last = Mat::from_fn(next.last.len(), count, |i, j| y_last_of[(i, order[j])]);
         let coupling = next.r * &y_last;
-        let mut z = ops.apply_block(Which::K, next.q.as_ref());
-        z -= shift * next.mq;
-        let gram = z.transpose() * &z;
         Ok(RitzPairs {
             theta,
             y,
@@ -157,10 +181,7 @@ impl RitzCheck<'_> {
         if let Some(worst) = worst {
             return Ok(Check::Converged(converged, worst));
         }
-        let ritz = match ritz.y {
-            Some(_) => ritz,
-            None => RitzPairs::new(self.ops, self.shift, h, next, self.nev, None)?,
-        };
+        let ritz = ritz.dense(h, next, self.nev)?;
         self.verify(basis, &ritz, converged)
     }
 
