@@ -182,8 +182,8 @@ pub fn extract(
             }
         }
     }
-    // A mode two levels both answered for (where a truncated top band shifts a level's
-    // decay window) is kept once.
+    // A mode whose decay rate lies at a boundary of two levels' windows can be taken from
+    // both (their estimates fall on either side of it): kept once.
     modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     modes.dedup_by(|b, a| {
         (b.freq_hz - a.freq_hz).abs() < 1e-4 * a.freq_hz
