@@ -5,18 +5,16 @@
 //! below the strongest mode, a lead-in before the strike.
 
 use super::ExtractedMode;
+use crate::predictor::dataset::Stream;
 use std::f64::consts::TAU;
 
-/// SplitMix64 (Steele, Lea and Flood 2014) as a uniform in [0, 1).
-struct Rng(u64);
+/// The dataset's SplitMix64 stream as uniform and normal draws.
+struct Rng(Stream);
 impl Rng {
     fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        self.0.range(0.0, 1.0)
     }
+    /// A standard normal draw (Box-Muller).
     fn gauss(&mut self) -> f64 {
         let (u, v) = (self.uniform().max(1e-300), self.uniform());
         (-2.0 * u.ln()).sqrt() * (TAU * v).cos()
@@ -41,7 +39,7 @@ pub struct Case {
 /// partner 0.5-2 Hz away (the split pairs of symmetric objects), amplitudes over 30 dB,
 /// decays log-uniform in 0.5-200 /s; noise at `snr_db` below the strongest mode.
 pub fn case(seed: u64, count: usize, snr_db: f64, duration_s: f64) -> Case {
-    let mut rng = Rng(seed);
+    let mut rng = Rng(Stream(seed));
     let fs = if seed.is_multiple_of(2) {
         48_000.0
     } else {

@@ -73,7 +73,8 @@ impl Family {
 }
 
 /// A small deterministic random stream (SplitMix64, Steele, Lea and Flood 2014): enough for
-/// shape parameters and for training's shuffles, and reproducible everywhere.
+/// shape parameters, training's shuffles and the synthetic strikes of
+/// [`crate::analysis::synthetic`], and reproducible everywhere.
 pub(crate) struct Stream(pub(crate) u64);
 
 impl Stream {
@@ -95,7 +96,7 @@ impl Stream {
         (self.next() % n as u64) as usize
     }
     /// Uniform in `[lo, hi)`.
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+    pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
     /// Uniform integer in `lo..=hi`.
