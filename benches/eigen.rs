@@ -123,9 +123,9 @@ fn table(quick: bool) {
                 Ok(s) => println!(
                     "{:<12} {:>6} {:>6} {:>8} {:>8} {:>9.0} {:>9.0} {:>9.0} {:>9.0} {:>6}",
                     name,
-                    kind.name(),
+                    kind,
                     count,
-                    solver.name(),
+                    solver,
                     model.dofs(),
                     assemble_ms,
                     s.timings.setup_ms,
@@ -135,8 +135,7 @@ fn table(quick: bool) {
                 ),
                 Err(e) => println!(
                     "{name:<12} {:>6} {count:>6} {:>8} failed: {e}",
-                    kind.name(),
-                    solver.name()
+                    kind, solver
                 ),
             }
         }

@@ -193,14 +193,14 @@ fn export_for_scipy(dir: &std::path::Path) {
                 csv,
                 "{name},{},{modes},{},{ms:.1},{worst:.2e},{}",
                 model.dofs(),
-                sol.solver.name(),
+                sol.solver,
                 values.join(" ")
             )
             .unwrap();
             println!(
                 "{name:<12} {:>6} DOFs {modes:>3} modes: {ms:>8.1} ms ({})",
                 model.dofs(),
-                sol.solver.name()
+                sol.solver
             );
         }
     }
@@ -307,7 +307,7 @@ fn main() {
             cold.solution.timings.setup_ms,
             cold.solution.timings.iterate_ms,
             cold_ms,
-            cold.solver.name(),
+            cold.solver,
             warm_cols[0],
             warm_cols[1],
             coarse_ms,

@@ -93,7 +93,7 @@ fn main() {
                 let error = smooth::worst(&smooth::frequency_errors(got, &want, 10));
                 println!(
                     "{spec:<24} {voxels:<9} {:<6} {dofs:>7} {split:>9.3} {error:>9.2} {ms:>12.1}",
-                    kind.name()
+                    kind
                 );
             }
         }

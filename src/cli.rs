@@ -15,7 +15,8 @@ pub mod predictor;
 use crate::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
 use crate::synth::render::{self, BankKind, Performance, RenderError};
 use crate::synth::{Excitation, ExcitationError, SimdBackend};
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::builder::TypedValueParser;
+use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 /// Longest render accepted, in seconds.
@@ -117,12 +118,13 @@ pub struct RenderArgs {
     /// Length in seconds [default: until the sound has decayed by 60 dB, 0.5 to 30 s].
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub seconds: Option<f64>,
-    /// Sample rate in Hz (8000 to 384000).
-    #[arg(long, value_name = "HZ", default_value_t = 48000)]
+    /// Sample rate in Hz.
+    #[arg(long, value_name = "HZ", default_value_t = 48000,
+          value_parser = clap::value_parser!(u32).range(8000..=384_000))]
     pub rate: u32,
     /// Synthesis bank.
-    #[arg(long, value_enum, default_value_t = BankArg::Oscillator)]
-    pub bank: BankArg,
+    #[arg(long, value_enum, default_value_t = BankKind::Oscillator)]
+    pub bank: BankKind,
     /// Mallet contact time in seconds: 0 is an ideal impulse, longer is softer (up to 0.1).
     #[arg(
         long,
@@ -143,7 +145,9 @@ pub struct RenderArgs {
     #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub scrape: Option<f64>,
     /// Bits per sample: 32 (float), 24 or 16 (integer).
-    #[arg(long, value_name = "BITS", default_value_t = 32)]
+    #[arg(long, value_name = "BITS", default_value_t = 32,
+          value_parser = clap::builder::PossibleValuesParser::new(["16", "24", "32"])
+              .map(|b| b.parse::<u16>().expect("a listed value")))]
     pub bits: u16,
     /// Keep the raw amplitudes instead of normalising the peak to -1 dBFS.
     #[arg(long)]
@@ -151,15 +155,6 @@ pub struct RenderArgs {
     /// Print a JSON summary instead of a sentence.
     #[arg(long)]
     pub json: bool,
-}
-
-/// `--bank` values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BankArg {
-    /// Damped oscillators: exact, fastest, strikes only.
-    Oscillator,
-    /// Biquad resonators: driven by any force signal.
-    Biquad,
 }
 
 /// Everything the CLI can fail with; each message is one line that says what to fix.
@@ -237,7 +232,7 @@ pub struct RenderSummary {
     /// Bits per sample.
     pub bits: u16,
     /// `oscillator` or `biquad`.
-    pub bank: &'static str,
+    pub bank: String,
     /// SIMD backend used.
     pub backend: &'static str,
     /// Culling counts.
@@ -299,18 +294,6 @@ fn option_error(msg: String) -> CliError {
 
 /// `modalforge render`.
 pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
-    if !(8000..=384_000).contains(&args.rate) {
-        return Err(option_error(format!(
-            "--rate {} is out of range: use 8000 to 384000 Hz",
-            args.rate
-        )));
-    }
-    if ![16, 24, 32].contains(&args.bits) {
-        return Err(option_error(format!(
-            "--bits {} is not supported: use 16, 24 or 32",
-            args.bits
-        )));
-    }
     let fs = args.rate as f64;
     let excitation = Excitation::mallet(args.hardness)?;
     crate::synth::oscillator::check_velocity(args.velocity)?;
@@ -373,10 +356,7 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
         }
         None => (onset_s + playable.ring_time_s(60.0)).clamp(0.5, 30.0),
     };
-    let bank = match args.bank {
-        BankArg::Oscillator => BankKind::Oscillator,
-        BankArg::Biquad => BankKind::Biquad,
-    };
+    let bank = args.bank;
     let n = (seconds * fs).round().max(1.0) as usize;
     let fade = ((0.01 * fs) as usize).min(n / 4);
 
@@ -433,10 +413,7 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
         seconds: n as f64 / fs,
         sample_rate_hz: args.rate,
         bits: args.bits,
-        bank: match bank {
-            BankKind::Oscillator => "oscillator",
-            BankKind::Biquad => "biquad",
-        },
+        bank: bank.to_string(),
         backend: SimdBackend::detect().name(),
         modes: report,
         raw_peak,

@@ -56,8 +56,9 @@ pub enum ModeCount {
     Below(f64),
 }
 
-/// Which eigensolver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which eigensolver (command-line names from the `clap::ValueEnum` derive; `Display` prints
+/// the same name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolverKind {
     /// Shift-invert block Lanczos on a sparse Cholesky factorisation.
     Lanczos,
@@ -71,6 +72,7 @@ pub enum SolverKind {
     /// made faster: 4.5 s against 6.3 s). Where LOBPCG stalls (`NoConvergence`: its multigrid
     /// coarsens cut voxels as whole ones, and about one generated object in twenty stalled at a
     /// residual of 1e-3), Auto solves again by Lanczos.
+    #[value(help = "LOBPCG from 30k DOFs for up to 100 modes, else Lanczos (measured)")]
     Auto,
 }
 
@@ -81,16 +83,13 @@ pub const AUTO_LOBPCG_DOFS: usize = 30_000;
 /// the square of the block).
 pub const AUTO_LOBPCG_MAX_MODES: usize = 100;
 
-impl SolverKind {
-    /// CLI name.
-    pub fn name(self) -> &'static str {
-        match self {
-            SolverKind::Lanczos => "lanczos",
-            SolverKind::Lobpcg => "lobpcg",
-            SolverKind::Auto => "auto",
-        }
+impl std::fmt::Display for SolverKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
     }
+}
 
+impl SolverKind {
     /// The solver `Auto` stands for on a model of `dofs` DOFs (the others stand for themselves).
     /// "Modes below f_max" counts as many modes unless the model is large.
     pub fn resolve(self, dofs: usize, options: &EigenOptions) -> SolverKind {

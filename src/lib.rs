@@ -22,3 +22,15 @@ pub mod modes;
 pub mod predictor;
 pub mod shape;
 pub mod synth;
+
+/// Writes a `clap::ValueEnum`'s command-line name, honouring width and alignment: the one
+/// source of the names that `--help` lists, that reports print and that `Display` shows.
+pub(crate) fn cli_name<T: clap::ValueEnum>(
+    value: &T,
+    f: &mut std::fmt::Formatter<'_>,
+) -> std::fmt::Result {
+    match value.to_possible_value() {
+        Some(v) => f.pad(v.get_name()),
+        None => f.pad("(hidden)"),
+    }
+}

@@ -15,10 +15,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
         Err(e) => {
-            // clap's own errors span several lines; keep the first, point at --help.
-            let text = e.to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments");
-            eprintln!("{first} (see modalforge --help)");
+            eprintln!("{}", one_line(&e));
             return ExitCode::from(2);
         }
     };
@@ -31,5 +28,19 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// clap's own errors span several lines: keep the first, with the allowed values when clap
+/// lists them, and point at --help.
+fn one_line(e: &clap::Error) -> String {
+    use clap::error::{ContextKind, ContextValue};
+    let text = e.to_string();
+    let first = text.lines().next().unwrap_or("invalid arguments");
+    match e.get(ContextKind::ValidValue) {
+        Some(ContextValue::Strings(values)) if !values.is_empty() => {
+            format!("{first}: use {} (see modalforge --help)", values.join(", "))
+        }
+        _ => format!("{first} (see modalforge --help)"),
     }
 }

@@ -25,7 +25,7 @@
 
 pub mod damping;
 
-pub use damping::{DampedMode, Damping};
+pub use damping::{DampedMode, Damping, DampingLaw};
 use serde::Deserialize;
 
 /// A material: elastic constants and damping.
@@ -218,7 +218,7 @@ impl Material {
         let mut models = Vec::new();
         if let Some(r) = f.rayleigh {
             models.push((
-                "rayleigh".to_string(),
+                DampingLaw::Rayleigh.to_string(),
                 Damping::Rayleigh {
                     alpha1: r.alpha1,
                     alpha2: r.alpha2,
@@ -226,11 +226,14 @@ impl Material {
             ));
         }
         if let Some(c) = f.caughey {
-            models.push(("caughey".to_string(), Damping::Caughey { eta: c.eta }));
+            models.push((
+                DampingLaw::Caughey.to_string(),
+                Damping::Caughey { eta: c.eta },
+            ));
         }
         if let Some(p) = f.power_law {
             models.push((
-                "power_law".to_string(),
+                DampingLaw::PowerLaw.to_string(),
                 Damping::PowerLaw {
                     mu1: p.mu1,
                     mu2: p.mu2,
@@ -305,12 +308,12 @@ impl Material {
         Self::preset(spec)
     }
 
-    /// Selects one of the preset's damping models by name.
-    pub fn with_damping_model(mut self, model: &str) -> Option<Self> {
+    /// Selects one of the preset's damping models by its law.
+    pub fn with_damping_law(mut self, law: DampingLaw) -> Option<Self> {
         let d = self
             .damping_models
             .iter()
-            .find(|(n, _)| n == model)?
+            .find(|(_, d)| d.law() == Some(law))?
             .1
             .clone();
         self.damping = d;

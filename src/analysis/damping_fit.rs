@@ -14,7 +14,7 @@
 //! the lowest Bayesian information criterion, `n ln(RSS / n) + k ln n` (`k` parameters), which
 //! takes the Caughey series' third parameter only where it pays.
 
-use crate::material::damping::Damping;
+use crate::material::damping::{Damping, DampingLaw};
 use faer::linalg::solvers::SolveLstsqCore;
 use faer::{Conj, Mat};
 use std::f64::consts::TAU;
@@ -26,8 +26,8 @@ const PRECISION: f64 = 1e-3;
 /// One law's fit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LawFit {
-    /// `rayleigh`, `caughey` or `power_law`.
-    pub law: &'static str,
+    /// Which law.
+    pub law: DampingLaw,
     /// Its parameters: `[alpha1, alpha2]`, `[eta0, eta1, eta2]` or `[mu1, mu2]` (SI units:
     /// `c` in 1/s, `lambda` in rad^2/s^2).
     pub parameters: Vec<f64>,
@@ -42,12 +42,12 @@ impl LawFit {
     pub fn damping(&self) -> Damping {
         let p = &self.parameters;
         match self.law {
-            "rayleigh" => Damping::Rayleigh {
+            DampingLaw::Rayleigh => Damping::Rayleigh {
                 alpha1: p[0],
                 alpha2: p[1],
             },
-            "caughey" => Damping::Caughey { eta: p.clone() },
-            _ => Damping::PowerLaw {
+            DampingLaw::Caughey => Damping::Caughey { eta: p.clone() },
+            DampingLaw::PowerLaw => Damping::PowerLaw {
                 mu1: p[0],
                 mu2: p[1],
             },
@@ -60,8 +60,8 @@ impl LawFit {
 pub struct DampingFits {
     /// The fits, Rayleigh, Caughey, power law (a law needs two more modes than parameters).
     pub laws: Vec<LawFit>,
-    /// The chosen law's name, or `None` with fewer than four modes.
-    pub best: Option<&'static str>,
+    /// The chosen law, or `None` with fewer than four modes.
+    pub best: Option<DampingLaw>,
 }
 
 /// Fits the three laws to modes given as `(damped frequency Hz, decay rate 1/s)`; modes with a
@@ -79,7 +79,7 @@ pub fn fit(modes: &[(f64, f64)]) -> DampingFits {
         l.sort_by(f64::total_cmp);
         l.get(l.len() / 2).copied().unwrap_or(1.0)
     };
-    for (law, terms) in [("rayleigh", 2usize), ("caughey", 3)] {
+    for (law, terms) in [(DampingLaw::Rayleigh, 2usize), (DampingLaw::Caughey, 3)] {
         if points.len() < terms + 2 {
             continue;
         }
@@ -106,9 +106,12 @@ pub fn fit(modes: &[(f64, f64)]) -> DampingFits {
         a.qr().solve_lstsq_in_place_with_conj(Conj::No, b.as_mut());
         let mu2 = b[(1, 0)];
         let mu1 = (b[(0, 0)] - mu2 * scale.ln()).exp();
-        laws.push(summarise("power_law", vec![mu1, mu2], &points, |l| {
-            mu1 * l.powf(mu2)
-        }));
+        laws.push(summarise(
+            DampingLaw::PowerLaw,
+            vec![mu1, mu2],
+            &points,
+            |l| mu1 * l.powf(mu2),
+        ));
     }
     let best = laws
         .iter()
@@ -120,7 +123,7 @@ pub fn fit(modes: &[(f64, f64)]) -> DampingFits {
 
 /// A law's error and criterion over the points `(lambda, c)`.
 fn summarise(
-    law: &'static str,
+    law: DampingLaw,
     parameters: Vec<f64>,
     points: &[(f64, f64)],
     c: impl Fn(f64) -> f64,
@@ -159,21 +162,21 @@ mod tests {
     fn recovers_the_law_that_made_the_modes() {
         let laws = [
             (
-                "rayleigh",
+                DampingLaw::Rayleigh,
                 Damping::Rayleigh {
                     alpha1: 4.0,
                     alpha2: 2e-8,
                 },
             ),
             (
-                "power_law",
+                DampingLaw::PowerLaw,
                 Damping::PowerLaw {
                     mu1: 0.05,
                     mu2: 0.4,
                 },
             ),
             (
-                "caughey",
+                DampingLaw::Caughey,
                 Damping::Caughey {
                     eta: vec![30.0, -1e-7, 2e-16],
                 },

@@ -192,8 +192,8 @@ pub fn sweep(
                 let point = ChartPoint {
                     shape: name.to_string(),
                     resolution: n,
-                    element: kind.name().to_string(),
-                    solver: solver.name().to_string(),
+                    element: kind.to_string(),
+                    solver: solver.to_string(),
                     tolerance,
                     dofs,
                     time_ms: ms,

@@ -3,7 +3,7 @@
 
 use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 use crate::fem::ElementKind;
-use crate::material::{DampedMode, Material, MaterialError};
+use crate::material::{DampedMode, DampingLaw, Material, MaterialError};
 use crate::modal::{Hit, ModalError, ModeBasis};
 use crate::shape::mesh::{self, MeshError};
 use crate::shape::spec::{ShapeSpec, SpecError};
@@ -31,9 +31,9 @@ pub struct ObjectArgs {
         allow_hyphen_values = true
     )]
     pub material: String,
-    /// Damping model of the preset: rayleigh, caughey or power_law.
-    #[arg(long, value_name = "MODEL")]
-    pub damping: Option<String>,
+    /// Damping model of the preset [default: the preset's own].
+    #[arg(long, value_name = "MODEL", value_enum)]
+    pub damping: Option<DampingLaw>,
     /// Voxel edge length in metres (fixes the size and the resolution).
     #[arg(
         long,
@@ -51,21 +51,19 @@ pub struct ObjectArgs {
     pub resolution: Option<String>,
     /// Split every voxel into N x N x N smaller ones: the same staircased object on a finer
     /// mesh (a convergence check; costs about N^3 more).
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=8))]
     pub split: usize,
     /// Rasterise built-in shapes as a binary staircase (a voxel solid when its centre is
     /// inside) instead of keeping how full the voxels the surface cuts are.
     #[arg(long)]
     pub staircase: bool,
-    /// Finite element: hex8i (default: trilinear with incompatible modes, no locking), hex27
-    /// (quadratic, most accurate) or hex8 (plain trilinear, the papers' reference; stiff).
-    #[arg(long, value_name = "NAME", default_value = "hex8i")]
-    pub element: String,
-    /// Eigensolver: auto (LOBPCG from 30k DOFs, else Lanczos), lanczos (shift-invert on a
-    /// sparse Cholesky), lobpcg (multigrid-preconditioned), or neural (the trained predictor:
-    /// milliseconds, approximate; one mode per predicted band).
-    #[arg(long, value_name = "NAME", default_value = "auto")]
-    pub solver: String,
+    /// Finite element.
+    #[arg(long, value_name = "NAME", value_enum, default_value_t = ElementKind::Hex8Incompatible)]
+    pub element: ElementKind,
+    /// Eigensolver, or the neural predictor.
+    #[arg(long, value_name = "NAME", value_enum, default_value_t = SolverChoice::Fem(SolverKind::Auto))]
+    pub solver: SolverChoice,
     /// Weights for --solver neural (a `modalforge train` checkpoint's model.bpk) [default: the
     /// shipped ones].
     #[arg(long, value_name = "FILE.bpk")]
@@ -75,11 +73,57 @@ pub struct ObjectArgs {
     pub tolerance: f64,
     /// Strike point X,Y,Z in metres from the object's minimum corner (snapped to the nearest
     /// surface) [default: the top face, off-centre].
-    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
-    pub hit: Option<String>,
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub hit: Option<Vec<f64>>,
     /// Force direction DX,DY,DZ [default: into the struck face].
-    #[arg(long, value_name = "DX,DY,DZ", allow_hyphen_values = true)]
-    pub force: Option<String>,
+    #[arg(
+        long,
+        value_name = "DX,DY,DZ",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub force: Option<Vec<f64>>,
+}
+
+/// `--solver`: one of the FEM eigensolvers, or the neural predictor. Its names are
+/// [`SolverKind`]'s own and `neural`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolverChoice {
+    /// Finite elements, solved by this eigensolver.
+    Fem(SolverKind),
+    /// The trained predictor: milliseconds, approximate; one mode per predicted band.
+    Neural,
+}
+
+impl clap::ValueEnum for SolverChoice {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[
+            Self::Fem(SolverKind::Auto),
+            Self::Fem(SolverKind::Lanczos),
+            Self::Fem(SolverKind::Lobpcg),
+            Self::Neural,
+        ]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        match self {
+            Self::Fem(kind) => kind.to_possible_value(),
+            Self::Neural => Some(clap::builder::PossibleValue::new("neural").help(
+                "the trained predictor: milliseconds, approximate; one mode per predicted band",
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for SolverChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
+    }
 }
 
 /// Why an object could not be built or solved.
@@ -129,18 +173,18 @@ fn positive(name: &str, v: f64) -> Result<f64, ObjectError> {
     }
 }
 
-/// Parses `X,Y,Z`.
-pub fn parse_vec3(name: &str, s: &str) -> Result<[f64; 3], ObjectError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().unwrap_or(f64::NAN))
-        .collect();
-    if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
-        return Err(ObjectError::Option(format!(
-            "{name} '{s}' must be three finite numbers X,Y,Z"
-        )));
+/// Checks the values of an `X,Y,Z` option (clap splits them at the commas).
+pub fn vec3(name: &str, v: &[f64]) -> Result<[f64; 3], ObjectError> {
+    match v {
+        &[x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => {
+            let given: Vec<String> = v.iter().map(f64::to_string).collect();
+            Err(ObjectError::Option(format!(
+                "{name} '{}' must be three finite numbers X,Y,Z",
+                given.join(",")
+            )))
+        }
     }
-    Ok([v[0], v[1], v[2]])
 }
 
 /// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).
@@ -174,36 +218,24 @@ impl Object {
     /// Builds the object from the options; `fmax_hz` drives `--resolution auto`.
     pub fn from_args(args: &ObjectArgs, fmax_hz: Option<f64>) -> Result<Self, ObjectError> {
         let mut material = Material::parse(&args.material)?;
-        if let Some(model) = &args.damping {
-            material = material.clone().with_damping_model(model).ok_or_else(|| {
+        if let Some(law) = args.damping {
+            material = material.clone().with_damping_law(law).ok_or_else(|| {
                 let have: Vec<&str> = material
                     .damping_models
                     .iter()
                     .map(|(n, _)| n.as_str())
                     .collect();
                 ObjectError::Option(format!(
-                    "material {} has no damping model '{model}' (it has {})",
+                    "material {} has no damping model '{law}' (it has {})",
                     material.name,
                     have.join(", ")
                 ))
             })?;
         }
-        let element = ElementKind::from_name(&args.element).ok_or_else(|| {
-            ObjectError::Option(format!(
-                "--element {} is unknown: use hex8i, hex27 or hex8",
-                args.element
-            ))
-        })?;
-        let (solver, neural) = match args.solver.as_str() {
-            "lanczos" => (SolverKind::Lanczos, false),
-            "lobpcg" => (SolverKind::Lobpcg, false),
-            "auto" => (SolverKind::Auto, false),
-            "neural" => (SolverKind::Auto, true),
-            s => {
-                return Err(ObjectError::Option(format!(
-                    "--solver {s} is unknown: use auto, lanczos, lobpcg or neural"
-                )))
-            }
+        let element = args.element;
+        let (solver, neural) = match args.solver {
+            SolverChoice::Fem(kind) => (kind, false),
+            SolverChoice::Neural => (SolverKind::Auto, true),
         };
         if let Some(v) = args.voxel_size {
             positive("--voxel-size", v)?;
@@ -270,12 +302,6 @@ impl Object {
         let longest_vox = *grid.dims().iter().max().unwrap() as f64;
         let h = args.voxel_size.unwrap_or(size_m / longest_vox);
         let grid = grid.with_voxel_size(h).map_err(ModalError::from)?;
-        if !(1..=8).contains(&args.split) {
-            return Err(ObjectError::Option(format!(
-                "--split {} must be a whole number from 1 to 8",
-                args.split
-            )));
-        }
         let grid = match args.split {
             1 => grid,
             n => grid.split(n).map_err(ModalError::from)?,
@@ -318,10 +344,10 @@ impl Object {
             direction: None,
         };
         if let Some(p) = &args.hit {
-            hit.point_m = parse_vec3("--hit", p)?;
+            hit.point_m = vec3("--hit", p)?;
         }
         if let Some(f) = &args.force {
-            hit.direction = Some(parse_vec3("--force", f)?);
+            hit.direction = Some(vec3("--force", f)?);
         }
         Ok((predicted, hit))
     }
@@ -363,10 +389,10 @@ impl Object {
     pub fn hit(&self, basis: &ModeBasis, args: &ObjectArgs) -> Result<Hit, ObjectError> {
         let mut hit = basis.default_hit(self.grid.voxel_size_m());
         if let Some(h) = &args.hit {
-            hit.point_m = parse_vec3("--hit", h)?;
+            hit.point_m = vec3("--hit", h)?;
         }
         if let Some(f) = &args.force {
-            hit.direction = Some(parse_vec3("--force", f)?);
+            hit.direction = Some(vec3("--force", f)?);
         }
         Ok(hit)
     }
@@ -422,9 +448,9 @@ pub struct ModesReport {
     /// Voxel edge, m.
     pub voxel_size_m: f64,
     /// Element used.
-    pub element: &'static str,
+    pub element: String,
     /// Solver used.
-    pub solver: &'static str,
+    pub solver: String,
     /// Material name.
     pub material: String,
     /// Hit point, m, and force direction used.
@@ -505,8 +531,8 @@ pub fn neural_report(
         },
         grid: object.grid.dims(),
         voxel_size_m: h,
-        element: "none",
-        solver: "neural",
+        element: "none".into(),
+        solver: SolverChoice::Neural.to_string(),
         material: object.material.name.clone(),
         hit_m: hit.point_m,
         bands,
@@ -555,8 +581,8 @@ pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesRepo
         },
         grid: object.grid.dims(),
         voxel_size_m: h,
-        element: object.element.name(),
-        solver: sol.solver.name(),
+        element: object.element.to_string(),
+        solver: sol.solver.to_string(),
         material: object.material.name.clone(),
         hit_m: hit.point_m,
         bands: None,

@@ -17,15 +17,23 @@
 //!   Lagrange; higher-order elements are much more accurate than linear ones (Jin et al. 2024, sec.
 //!   3.3).
 
-/// The finite element used on every voxel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// The finite element used on every voxel. Its command-line names (`hex8`, `hex8i`, `hex27`)
+/// come from the `clap::ValueEnum` derive; `Display` prints the same name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
 pub enum ElementKind {
-    /// Trilinear 8-node hexahedron, full integration.
+    /// Plain trilinear 8-node hexahedron, full integration (the papers' reference; stiff).
     Hex8,
     /// Trilinear hexahedron with condensed incompatible (bubble) modes: no shear locking.
+    #[value(name = "hex8i")]
     Hex8Incompatible,
-    /// Triquadratic 27-node hexahedron.
+    /// Triquadratic 27-node hexahedron (most accurate).
     Hex27,
+}
+
+impl std::fmt::Display for ElementKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
+    }
 }
 
 impl ElementKind {
@@ -42,26 +50,12 @@ impl ElementKind {
         (self.order() + 1).pow(3)
     }
 
-    /// CLI name.
-    pub fn name(self) -> &'static str {
-        match self {
-            ElementKind::Hex8 => "hex8",
-            ElementKind::Hex8Incompatible => "hex8i",
-            ElementKind::Hex27 => "hex27",
-        }
-    }
-
     /// Every kind, cheapest first.
     pub const ALL: [ElementKind; 3] = [
         ElementKind::Hex8,
         ElementKind::Hex8Incompatible,
         ElementKind::Hex27,
     ];
-
-    /// Parses a CLI name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|k| k.name() == name)
-    }
 }
 
 /// Element matrices of the unit cube with `E = 1`, `rho = 1`; dense, row-major, `3 n` square.

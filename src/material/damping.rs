@@ -8,6 +8,27 @@
 
 use std::sync::Arc;
 
+/// The named damping laws a material preset or a fit to a recording can hold. Their names
+/// (`rayleigh`, `caughey`, `power_law`) in presets, on the command line and in JSON all come
+/// from the variant names by one rule (snake case); `Display` prints the same.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize)]
+#[value(rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
+pub enum DampingLaw {
+    /// `c = alpha1 + alpha2 omega^2`.
+    Rayleigh,
+    /// `c = sum_j eta_j omega^(2j)`.
+    Caughey,
+    /// `c = mu1 omega^(2 mu2)`.
+    PowerLaw,
+}
+
+impl std::fmt::Display for DampingLaw {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
+    }
+}
+
 /// A damping model: the map from a mode's eigenvalue to its viscous coefficient `c`.
 #[derive(Clone)]
 pub enum Damping {
@@ -65,6 +86,16 @@ pub enum DampedMode {
 }
 
 impl Damping {
+    /// Which named law this is (`None` for [`Damping::Custom`]).
+    pub fn law(&self) -> Option<DampingLaw> {
+        match self {
+            Damping::Rayleigh { .. } => Some(DampingLaw::Rayleigh),
+            Damping::Caughey { .. } => Some(DampingLaw::Caughey),
+            Damping::PowerLaw { .. } => Some(DampingLaw::PowerLaw),
+            Damping::Custom(_) => None,
+        }
+    }
+
     /// Viscous coefficient `c` (1/s) for a mode of eigenvalue `omega_n^2` (rad^2/s^2).
     pub fn coefficient(&self, omega_n_sq: f64) -> f64 {
         let w2 = omega_n_sq.max(0.0);

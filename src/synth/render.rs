@@ -10,13 +10,20 @@ use crate::modes::PlayableModes;
 /// Samples per block handed to the sink.
 pub const RENDER_BLOCK: usize = 1024;
 
-/// Which bank plays the modes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which bank plays the modes (command-line names from the `clap::ValueEnum` derive;
+/// `Display` prints the same name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum BankKind {
     /// Damped oscillators (strikes only; exact and fastest).
     Oscillator,
     /// Biquad resonators driven by a force signal (strikes, scrapes).
     Biquad,
+}
+
+impl std::fmt::Display for BankKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
+    }
 }
 
 /// What happens to the object.
