@@ -350,8 +350,19 @@ fn vectors_before_next_check(len: usize, converged: usize, nev: usize, b: usize)
     (gap / b * b).max(b)
 }
 
+/// Rigid-body modes of one free component (3 translations, 3 rotations): a request for `k`
+/// modes starts by asking for `k + RIGID_BODY_MODES` pairs, and grows once the rigid count is
+/// known (an object of several components has more).
+const RIGID_BODY_MODES: usize = 6;
+
+/// Pairs asked for first by a "modes below f_max" request, before any is known: 20 modes and
+/// the rigid ones.
+const BELOW_FIRST_PAIRS: usize = 20 + RIGID_BODY_MODES;
+
 /// The iteration on an existing factorisation `llt` of `K - shift M`; `setup_ms` of the
-/// result is zero.
+/// result is zero. Steps: expand the basis block by block, checking convergence on the way
+/// ([`Krylov::expand`]); when it is full, verify the Ritz pairs with formed vectors, decide
+/// how many pairs are wanted now ([`wanted_after_restart`]) and restart ([`Krylov::restart`]).
 pub fn run(
     ops: &Operators,
     llt: &mut ShiftedCholesky,
@@ -360,15 +371,13 @@ pub fn run(
 ) -> Result<EigenSolution, EigenError> {
     let n = ops.dofs();
     let b = options.block_size.min(n);
-    let mut nev = match options.count {
-        ModeCount::First(k) => k + 6,
-        ModeCount::Below(_) => 26,
-    };
-    if let ModeCount::First(k) = options.count {
-        if k + 6 > n {
-            return Err(EigenError::TooFewDofs { dofs: n, wanted: k });
+    let nev = match options.count {
+        ModeCount::First(k) if k + RIGID_BODY_MODES > n => {
+            return Err(EigenError::TooFewDofs { dofs: n, wanted: k })
         }
-    }
+        ModeCount::First(k) => k + RIGID_BODY_MODES,
+        ModeCount::Below(_) => BELOW_FIRST_PAIRS,
+    };
     let mut checker = RitzCheck {
         ops,
         shift,
@@ -378,83 +387,25 @@ pub fn run(
         restarts: 0,
         band: Some(b),
     };
-    let mut basis = Basis::new(n, basis_cap(nev, b, n));
-    let mut h = Mat::<f64>::zeros(basis.cap(), basis.cap());
-    let mut seed = 1u64;
-    let (q, mq, _) = block_qr(ops, &basis, random_block(n, b, seed), &mut seed)?;
-    basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
-    basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
-    basis.len = b;
-    let mut fresh = 0..b; // columns whose operator image is still to be computed
+    let mut krylov = Krylov::start(ops, basis_cap(nev, b, n), b, nev)?;
     let (mut converged_count, mut worst) = (0, f64::INFINITY);
-    let mut next_check = first_check(nev, b);
     for restart in 0..options.max_iterations {
         checker.restarts = restart;
-        // Expand until converged or full; the last block's residual is kept for the restart.
-        let (q_res, mq_res, r_res, last) = loop {
-            let cols = fresh.clone();
-            let mut w = basis.mv.get(.., cols.clone()).to_owned();
-            llt.solve_in_place(w.as_mut());
-            let (mut c, mut last_pass) = basis.project_out(&mut w, 2 * b);
-            let mut passes = 1;
-            let (q, mq, r) = loop {
-                match chol_qr(ops, &w, &c, &last_pass) {
-                    Ok(qr) => break qr,
-                    Err(QrRefusal::Reorthogonalise) if passes < 2 => {
-                        last_pass = basis.project_pass(0..basis.len, &mut w);
-                        c += &last_pass;
-                        passes += 1;
-                    }
-                    Err(_) => break block_qr(ops, &basis, w, &mut seed)?,
-                }
-            };
-            h.as_mut().get_mut(0..basis.len, cols.clone()).copy_from(&c);
-            if basis.len >= next_check {
-                let next = NextBlock {
-                    q: &q,
-                    mq: &mq,
-                    r: &r,
-                    last: cols.clone(),
-                };
-                let len = basis.len;
-                match checker.run(&basis, &h.get(0..len, 0..len).to_owned(), &next)? {
-                    Check::Done(solution) => return Ok(*solution),
-                    Check::Converged(converged, _) => {
-                        next_check =
-                            basis.len + vectors_before_next_check(basis.len, converged, nev, b);
-                    }
-                }
-            }
-            if basis.len + q.ncols() > basis.cap() {
-                break (q, mq, r, cols);
-            }
-            let at = basis.len..basis.len + q.ncols();
-            h.as_mut().get_mut(at.clone(), cols).copy_from(&r);
-            basis.v.as_mut().get_mut(.., at.clone()).copy_from(&q);
-            basis.mv.as_mut().get_mut(.., at.clone()).copy_from(&mq);
-            basis.len = at.end;
-            fresh = at;
-        };
-        let len = basis.len;
-        let next = NextBlock {
-            q: &q_res,
-            mq: &mq_res,
-            r: &r_res,
-            last: last.clone(),
+        let full = match krylov.expand(ops, llt, &mut checker)? {
+            Expanded::Done(solution) => return Ok(*solution),
+            Expanded::Full(full) => full,
         };
         let ritz = RitzPairs::new(
             ops,
             shift,
-            &h.get(0..len, 0..len).to_owned(),
-            &next,
-            nev,
+            &krylov.projected(),
+            &full.next(),
+            checker.nev,
             None,
         )?;
-        let (theta, order) = (&ritz.theta, &ritz.order);
-        let y = ritz.y.as_ref().expect("the dense decomposition");
         // The estimates can be pessimistic: a full basis is always checked with formed vectors.
-        let check = nev.min(order.len());
-        let rigid = match checker.verify(&basis, &ritz, check)? {
+        let check = checker.nev.min(ritz.order.len());
+        let rigid = match checker.verify(&krylov.basis, &ritz, check)? {
             Check::Done(solution) => return Ok(*solution),
             Check::Converged(c, w) => {
                 (converged_count, worst) = (c, w);
@@ -463,14 +414,7 @@ pub fn run(
                     .count()
             }
         };
-        // Not done: how many pairs are wanted now that the rigid count is known?
-        nev = match options.count {
-            ModeCount::First(k) => nev.max(rigid + k),
-            ModeCount::Below(_) if converged_count + b >= nev => {
-                (nev * 3 / 2 + b).min(super::MAX_MODES + 64)
-            }
-            ModeCount::Below(_) => nev,
-        };
+        let nev = wanted_after_restart(options.count, checker.nev, rigid, converged_count, b);
         checker.nev = nev;
         // The restarted projected matrix is an arrow (kept Ritz values, their coupling to
         // the residual block), not a band.
@@ -481,55 +425,233 @@ pub fn run(
                 wanted: nev,
             });
         }
-        let cap = basis_cap(nev, b, n);
-        if cap > basis.cap() {
-            basis.grow(cap);
-            let mut h2 = Mat::zeros(cap, cap);
-            h2.as_mut()
-                .get_mut(0..len, 0..len)
-                .copy_from(h.get(0..len, 0..len));
-            h = h2;
+        krylov.grow(basis_cap(nev, b, n));
+        krylov.restart(&ritz, &full, nev, converged_count);
+    }
+    Err(EigenError::NoConvergence {
+        converged: converged_count,
+        wanted: checker.nev,
+        worst_residual: worst,
+    })
+}
+
+/// Pairs wanted after a restart found `rigid` rigid modes among `converged` converged pairs:
+/// a "first k" request now knows its rigid count; a "below f_max" request that has converged
+/// all it asked for (and so has not reached f_max yet) asks for half as many more, up to
+/// [`super::MAX_MODES`] and a margin.
+fn wanted_after_restart(
+    count: ModeCount,
+    nev: usize,
+    rigid: usize,
+    converged: usize,
+    b: usize,
+) -> usize {
+    match count {
+        ModeCount::First(k) => nev.max(rigid + k),
+        ModeCount::Below(_) if converged + b >= nev => (nev * 3 / 2 + b).min(super::MAX_MODES + 64),
+        ModeCount::Below(_) => nev,
+    }
+}
+
+/// The residual block that did not fit in a full basis, kept for the restart.
+struct Residual {
+    q: Mat<f64>,
+    mq: Mat<f64>,
+    r: Mat<f64>,
+    last: std::ops::Range<usize>,
+}
+
+impl Residual {
+    fn next(&self) -> NextBlock<'_> {
+        NextBlock {
+            q: &self.q,
+            mq: &self.mq,
+            r: &self.r,
+            last: self.last.clone(),
         }
-        // Thick restart: keep the best Ritz vectors, continue from the residual block.
-        let keep_n = (nev + b)
-            .min(order.len())
-            .min(basis.cap() - 2 * q_res.ncols());
+    }
+}
+
+/// How [`Krylov::expand`] ended.
+enum Expanded {
+    /// Every wanted pair converged.
+    Done(Box<EigenSolution>),
+    /// The basis is full.
+    Full(Residual),
+}
+
+/// The basis, its projected matrix `H = V^T M Op V` and the schedule of one `run`.
+struct Krylov {
+    basis: Basis,
+    h: Mat<f64>,
+    /// Columns whose operator image is still to be computed.
+    fresh: std::ops::Range<usize>,
+    /// Basis length of the next convergence check.
+    next_check: usize,
+    /// State of the random blocks that replace a block lost to breakdown.
+    seed: u64,
+    /// The block size asked for (a block can come out narrower after a breakdown).
+    block: usize,
+}
+
+impl Krylov {
+    /// A basis of capacity `cap` started from an M-orthonormalised random block of `b`, for
+    /// `nev` pairs.
+    fn start(ops: &Operators, cap: usize, b: usize, nev: usize) -> Result<Self, EigenError> {
+        let n = ops.dofs();
+        let mut basis = Basis::new(n, cap);
+        let mut seed = 1u64;
+        let (q, mq, _) = block_qr(ops, &basis, random_block(n, b, seed), &mut seed)?;
+        basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
+        basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
+        basis.len = b;
+        Ok(Krylov {
+            h: Mat::zeros(cap, cap),
+            basis,
+            fresh: 0..b,
+            next_check: first_check(nev, b),
+            seed,
+            block: b,
+        })
+    }
+
+    /// The projected matrix of the basis so far.
+    fn projected(&self) -> Mat<f64> {
+        let len = self.basis.len;
+        self.h.get(0..len, 0..len).to_owned()
+    }
+
+    /// Adds blocks `Q` of `Op V_fresh` (M-orthogonalised against the basis) until the wanted
+    /// pairs converge or the basis is full, checking convergence at the scheduled lengths.
+    fn expand(
+        &mut self,
+        ops: &Operators,
+        llt: &mut ShiftedCholesky,
+        checker: &mut RitzCheck,
+    ) -> Result<Expanded, EigenError> {
+        let b = self.block;
+        loop {
+            let cols = self.fresh.clone();
+            let mut w = self.basis.mv.get(.., cols.clone()).to_owned();
+            llt.solve_in_place(w.as_mut());
+            let (c, q, mq, r) = self.orthogonalise(ops, w)?;
+            self.h
+                .as_mut()
+                .get_mut(0..self.basis.len, cols.clone())
+                .copy_from(&c);
+            if self.basis.len >= self.next_check {
+                let next = NextBlock {
+                    q: &q,
+                    mq: &mq,
+                    r: &r,
+                    last: cols.clone(),
+                };
+                match checker.run(&self.basis, &self.projected(), &next)? {
+                    Check::Done(solution) => return Ok(Expanded::Done(solution)),
+                    Check::Converged(converged, _) => {
+                        let len = self.basis.len;
+                        self.next_check =
+                            len + vectors_before_next_check(len, converged, checker.nev, b);
+                    }
+                }
+            }
+            if self.basis.len + q.ncols() > self.basis.cap() {
+                return Ok(Expanded::Full(Residual {
+                    q,
+                    mq,
+                    r,
+                    last: cols,
+                }));
+            }
+            let at = self.basis.len..self.basis.len + q.ncols();
+            self.h.as_mut().get_mut(at.clone(), cols).copy_from(&r);
+            self.basis.v.as_mut().get_mut(.., at.clone()).copy_from(&q);
+            self.basis
+                .mv
+                .as_mut()
+                .get_mut(.., at.clone())
+                .copy_from(&mq);
+            self.basis.len = at.end;
+            self.fresh = at;
+        }
+    }
+
+    /// M-orthogonalises a new block `w` against the basis (the last two blocks, then the
+    /// whole basis once or twice) and within itself: the coefficients `C`, the block `Q`, `M Q`
+    /// and `R` with `w = V C + Q R`. A block that loses its rank is replaced by a random one.
+    #[allow(clippy::type_complexity)]
+    fn orthogonalise(
+        &mut self,
+        ops: &Operators,
+        mut w: Mat<f64>,
+    ) -> Result<(Mat<f64>, Mat<f64>, Mat<f64>, Mat<f64>), EigenError> {
+        let (mut c, mut last_pass) = self.basis.project_out(&mut w, 2 * self.block);
+        let mut passes = 1;
+        let (q, mq, r) = loop {
+            match chol_qr(ops, &w, &c, &last_pass) {
+                Ok(qr) => break qr,
+                Err(QrRefusal::Reorthogonalise) if passes < 2 => {
+                    last_pass = self.basis.project_pass(0..self.basis.len, &mut w);
+                    c += &last_pass;
+                    passes += 1;
+                }
+                Err(_) => break block_qr(ops, &self.basis, w, &mut self.seed)?,
+            }
+        };
+        Ok((c, q, mq, r))
+    }
+
+    /// Makes room for a basis of `cap` vectors.
+    fn grow(&mut self, cap: usize) {
+        if cap <= self.basis.cap() {
+            return;
+        }
+        let len = self.basis.len;
+        self.basis.grow(cap);
+        let mut h = Mat::zeros(cap, cap);
+        h.as_mut()
+            .get_mut(0..len, 0..len)
+            .copy_from(self.h.get(0..len, 0..len));
+        self.h = h;
+    }
+
+    /// Thick restart: keeps the best `nev + b` Ritz vectors (as many as fit beside the residual
+    /// block) and continues from the residual block; the projected matrix becomes an arrow.
+    fn restart(&mut self, ritz: &RitzPairs, residual: &Residual, nev: usize, converged: usize) {
+        let (len, b) = (self.basis.len, self.block);
+        let (theta, order) = (&ritz.theta, &ritz.order);
+        let y = ritz.y.as_ref().expect("the dense decomposition");
+        let qb = residual.q.ncols();
+        let keep_n = (nev + b).min(order.len()).min(self.basis.cap() - 2 * qb);
         let yk = Mat::from_fn(len, keep_n, |i, j| y[(i, order[j])]);
-        let xk = tall_times_small(basis.v.get(.., 0..len), yk.as_ref());
-        let mxk = tall_times_small(basis.mv.get(.., 0..len), yk.as_ref());
+        let xk = tall_times_small(self.basis.v.get(.., 0..len), yk.as_ref());
+        let mxk = tall_times_small(self.basis.mv.get(.., 0..len), yk.as_ref());
         // Residual coupling: Op x_j - theta_j x_j = Q (R y_j[last rows]).
+        let last = &residual.last;
         let y_last = Mat::from_fn(last.len(), keep_n, |i, j| y[(last.start + i, order[j])]);
-        let coupling = &r_res * &y_last;
+        let coupling = &residual.r * &y_last;
+        let h = &mut self.h;
         h.fill(0.0);
         for j in 0..keep_n {
             h[(j, j)] = theta[order[j]];
         }
-        let qb = q_res.ncols();
         h.as_mut()
             .get_mut(keep_n..keep_n + qb, 0..keep_n)
             .copy_from(&coupling);
         h.as_mut()
             .get_mut(0..keep_n, keep_n..keep_n + qb)
             .copy_from(coupling.transpose());
-        basis.v.as_mut().get_mut(.., 0..keep_n).copy_from(&xk);
-        basis.mv.as_mut().get_mut(.., 0..keep_n).copy_from(&mxk);
-        basis
-            .v
-            .as_mut()
+        let (v, mv) = (&mut self.basis.v, &mut self.basis.mv);
+        v.as_mut().get_mut(.., 0..keep_n).copy_from(&xk);
+        mv.as_mut().get_mut(.., 0..keep_n).copy_from(&mxk);
+        v.as_mut()
             .get_mut(.., keep_n..keep_n + qb)
-            .copy_from(&q_res);
-        basis
-            .mv
-            .as_mut()
+            .copy_from(&residual.q);
+        mv.as_mut()
             .get_mut(.., keep_n..keep_n + qb)
-            .copy_from(&mq_res);
-        basis.len = keep_n + qb;
-        fresh = keep_n..keep_n + qb;
-        next_check = basis.len + vectors_before_next_check(len, converged_count, nev, b);
+            .copy_from(&residual.mq);
+        self.basis.len = keep_n + qb;
+        self.fresh = keep_n..keep_n + qb;
+        self.next_check = self.basis.len + vectors_before_next_check(len, converged, nev, b);
     }
-    Err(EigenError::NoConvergence {
-        converged: converged_count,
-        wanted: nev,
-        worst_residual: worst,
-    })
 }

@@ -130,6 +130,21 @@ impl Images {
         MatRef::from_row_major_slice_with_stride(self.buf(part), self.rows, self.width, self.cap)
     }
 
+    /// Any columns of one buffer, whatever the block is (locked ones included).
+    fn columns(&self, part: Part, cols: std::ops::Range<usize>) -> MatRef<'_, f64> {
+        let buf = match part {
+            Part::X => &self.x,
+            Part::Kx => &self.kx,
+            Part::Mx => &self.mx,
+        };
+        MatRef::from_row_major_slice_with_stride(
+            &buf[cols.start..],
+            self.rows,
+            cols.len(),
+            self.cap,
+        )
+    }
+
     /// The block's columns of one buffer, writable.
     fn view_mut(&mut self, part: Part) -> MatMut<'_, f64> {
         let (rows, width, cap, first) = (self.rows, self.width, self.cap, self.first);
@@ -313,6 +328,9 @@ fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
 /// locking): it is no longer part of Rayleigh-Ritz or the block updates, and new directions are
 /// kept `M`-orthogonal to it. Converged columns above an unconverged one only stop contributing
 /// residual directions (soft locking), so the locked set is always the lowest Ritz pairs.
+///
+/// Each step: residuals and the stopping tests, [`Search::lock`] the converged prefix,
+/// [`Search::directions`] `W`, then [`Search::update`] `X` and `P` by Rayleigh-Ritz.
 pub(crate) fn iterate(
     ops: &Operators,
     precond: &mut dyn Preconditioner,
@@ -322,37 +340,12 @@ pub(crate) fn iterate(
     options: &EigenOptions,
     iterations: &mut usize,
 ) -> Result<Converged, EigenError> {
-    let n = ops.dofs();
-    let mut xb = Images::new(n, m);
-    xb.x.copy_from_slice(start);
-    xb.width = m;
-    xb.refresh(ops);
-    let (mut theta, c) = rayleigh_ritz(&[&xb], m)?;
-    let mut xt = Images::new(n, m);
-    combine(&mut xt, &[&xb], c.as_ref());
-    xt.refresh(ops);
-    std::mem::swap(&mut xb, &mut xt);
-    let mut pb = Images::new(n, m);
-    let mut pt = Images::new(n, m);
-    let mut wb = Images::new(n, m);
-    let mut rbuf = zeroed(n * m);
-    let mut res = vec![0.0; m];
-    let mut locked = 0;
+    let mut search = Search::start(ops, start, m)?;
     let (mut best, mut best_at) = (f64::INFINITY, *iterations);
     loop {
-        let fresh = residuals(ops, &xb, &theta[locked..]);
-        res[locked..].copy_from_slice(&fresh);
-        if res.iter().chain(&theta).any(|v| !v.is_finite()) {
-            return Err(EigenError::NonFinite);
-        }
+        let res = search.residuals(ops)?;
         if res[..need].iter().all(|&r| r <= options.tolerance) {
-            xb.first = 0;
-            xb.width = m;
-            return Ok(Converged {
-                theta,
-                x: xb,
-                residuals: res,
-            });
+            return Ok(search.converged());
         }
         let worst = res[..need].iter().cloned().fold(0.0, f64::max);
         if worst < 0.9 * best {
@@ -367,69 +360,145 @@ pub(crate) fn iterate(
             });
         }
         *iterations += 1;
-        // Lock the converged prefix; the spare buffer keeps a copy of the locked columns.
-        let was = locked;
-        while locked < need && res[locked] <= options.tolerance {
-            locked += 1;
-        }
-        if locked > was {
-            xt.copy_columns(&xb, was..locked);
-            // P was built while the newly locked columns were still searched: remove their
-            // M-components (and from P's images), or the active columns keep picking them up
-            // and stall near the tolerance.
-            if pb.width > 0 {
-                let (first, width) = (xb.first, xb.width);
-                (xb.first, xb.width) = (was, locked - was);
-                let coef = xb.view(Part::Mx).transpose() * pb.view(Part::X);
-                for part in [Part::X, Part::Kx, Part::Mx] {
-                    matmul(
-                        pb.view_mut(part),
-                        Accum::Add,
-                        xb.view(part),
-                        &coef,
-                        -1.0,
-                        Par::Seq,
-                    );
-                }
-                (xb.first, xb.width) = (first, width);
-            }
-            xb.first = locked;
-            xb.width = m - locked;
-            xt.first = locked;
-        }
-        let active: Vec<usize> = (locked..m)
-            .filter(|&j| res[j] > options.tolerance)
+        search.lock(need, options.tolerance);
+        let active: Vec<usize> = (search.locked..m)
+            .filter(|&j| search.res[j] > options.tolerance)
             .collect();
-        let a = active.len();
-        // Residuals of the active columns, then W = T R.
+        search.directions(ops, precond, &active);
+        search.update(ops, &active)?;
+    }
+}
+
+/// The state of one LOBPCG run: the block `X`, the previous step `P`, the search directions
+/// `W` (each with `K` and `M` images), spares for the next `X` and `P`, and the locked prefix.
+struct Search {
+    xb: Images,
+    /// The next `X`; its locked columns hold a copy of the locked modes.
+    xt: Images,
+    pb: Images,
+    pt: Images,
+    wb: Images,
+    /// The active columns' residuals, dense `n x a`.
+    rbuf: Vec<f64>,
+    /// Ritz values, ascending.
+    theta: Vec<f64>,
+    /// Residuals (Jin et al. 2022, eq. 6), kept for the locked columns.
+    res: Vec<f64>,
+    /// Columns `0..locked` have left the search.
+    locked: usize,
+}
+
+impl Search {
+    /// Rayleigh-Ritz on the start block.
+    fn start(ops: &Operators, start: &[f64], m: usize) -> Result<Self, EigenError> {
+        let n = ops.dofs();
+        let mut xt = Images::new(n, m);
+        xt.x.copy_from_slice(start);
+        xt.width = m;
+        xt.refresh(ops);
+        let (theta, c) = rayleigh_ritz(&[&xt], m)?;
+        let mut xb = Images::new(n, m);
+        combine(&mut xb, &[&xt], c.as_ref());
+        xb.refresh(ops);
+        Ok(Search {
+            xb,
+            xt,
+            pb: Images::new(n, m),
+            pt: Images::new(n, m),
+            wb: Images::new(n, m),
+            rbuf: zeroed(n * m),
+            theta,
+            res: vec![0.0; m],
+            locked: 0,
+        })
+    }
+
+    /// Recomputes the residuals of the columns still searched; all of them, checked finite.
+    fn residuals(&mut self, ops: &Operators) -> Result<&[f64], EigenError> {
+        let locked = self.locked;
+        let fresh = residuals(ops, &self.xb, &self.theta[locked..]);
+        self.res[locked..].copy_from_slice(&fresh);
+        if self.res.iter().chain(&self.theta).any(|v| !v.is_finite()) {
+            return Err(EigenError::NonFinite);
+        }
+        Ok(&self.res)
+    }
+
+    /// The whole block, converged.
+    fn converged(mut self) -> Converged {
+        self.xb.first = 0;
+        self.xb.width = self.xb.cap;
+        Converged {
+            theta: self.theta,
+            x: self.xb,
+            residuals: self.res,
+        }
+    }
+
+    /// Locks the converged prefix (up to `need` columns); the spare `X` keeps a copy of the
+    /// newly locked columns, and they are projected out of `P`.
+    fn lock(&mut self, need: usize, tolerance: f64) {
+        let was = self.locked;
+        while self.locked < need && self.res[self.locked] <= tolerance {
+            self.locked += 1;
+        }
+        let (locked, m) = (self.locked, self.xb.cap);
+        if locked == was {
+            return;
+        }
+        self.xt.copy_columns(&self.xb, was..locked);
+        // P was built while the newly locked columns were still searched: remove their
+        // M-components (and from P's images), or the active columns keep picking them up
+        // and stall near the tolerance.
+        if self.pb.width > 0 {
+            let coef = self.xb.columns(Part::Mx, was..locked).transpose() * self.pb.view(Part::X);
+            for part in [Part::X, Part::Kx, Part::Mx] {
+                matmul(
+                    self.pb.view_mut(part),
+                    Accum::Add,
+                    self.xb.columns(part, was..locked),
+                    &coef,
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+        }
+        self.xb.first = locked;
+        self.xb.width = m - locked;
+        self.xt.first = locked;
+    }
+
+    /// `W = T R` for the `active` columns' residuals `R`, M-orthogonal to the whole block.
+    fn directions(&mut self, ops: &Operators, precond: &mut dyn Preconditioner, active: &[usize]) {
+        let (n, m, a) = (ops.dofs(), self.xb.cap, active.len());
+        let xb = &self.xb;
         for i in 0..n {
             let (src, dst) = (i * m, i * a);
             for (q, &j) in active.iter().enumerate() {
-                rbuf[dst + q] = xb.kx[src + j] - theta[j] * xb.mx[src + j];
+                self.rbuf[dst + q] = xb.kx[src + j] - self.theta[j] * xb.mx[src + j];
             }
         }
-        wb.width = a;
-        let wl = wb.layout();
-
-        precond.apply(&rbuf[..n * a], RowBlock::dense(a), &mut wb.x, wl);
+        self.wb.width = a;
+        let wl = self.wb.layout();
+        precond.apply(&self.rbuf[..n * a], RowBlock::dense(a), &mut self.wb.x, wl);
         // W -= X (M X)^T W over all columns, locked ones included: keeps W M-orthogonal to the
         // locked modes and the Gram matrices well conditioned.
-        {
-            let (first, width) = (xb.first, xb.width);
-            (xb.first, xb.width) = (0, m);
-            let coef = xb.view(Part::Mx).transpose() * wb.view(Part::X);
-            matmul(
-                wb.view_mut(Part::X),
-                Accum::Add,
-                xb.view(Part::X),
-                &coef,
-                -1.0,
-                Par::Seq,
-            );
-            (xb.first, xb.width) = (first, width);
-        }
-        wb.refresh(ops);
-        let blocks: Vec<&Images> = [&xb, &wb, &pb]
+        let coef = xb.columns(Part::Mx, 0..m).transpose() * self.wb.view(Part::X);
+        matmul(
+            self.wb.view_mut(Part::X),
+            Accum::Add,
+            xb.columns(Part::X, 0..m),
+            &coef,
+            -1.0,
+            Par::Seq,
+        );
+        self.wb.refresh(ops);
+    }
+
+    /// Rayleigh-Ritz on `[X W P]`; the new `X` and, for the `active` columns, the new `P`.
+    fn update(&mut self, ops: &Operators, active: &[usize]) -> Result<(), EigenError> {
+        let (n, m, locked, a) = (ops.dofs(), self.xb.cap, self.locked, active.len());
+        let blocks: Vec<&Images> = [&self.xb, &self.wb, &self.pb]
             .into_iter()
             .filter(|b| b.width > 0)
             .collect();
@@ -437,10 +506,11 @@ pub(crate) fn iterate(
         // The update without its X part, for every column: P_all = [W P] C[k.., :]. Then
         // X' = X C[..k, :] + P_all, and P' = P_all's active columns (Knyazev's form, which
         // spares a product with the whole basis).
-        let (k, cols) = (xb.width, m - locked);
+        let (k, cols) = (self.xb.width, m - locked);
+        let (xt, pt) = (&mut self.xt, &mut self.pt);
         pt.first = 0;
-        combine(&mut pt, &blocks[1..], c.get(k.., ..));
-        combine(&mut xt, &blocks[..1], c.get(..k, ..));
+        combine(pt, &blocks[1..], c.get(k.., ..));
+        combine(xt, &blocks[..1], c.get(..k, ..));
         for i in 0..n {
             let (row_x, row_p) = (i * m + locked, i * m);
             for j in 0..cols {
@@ -455,9 +525,10 @@ pub(crate) fn iterate(
         pt.width = a;
         xt.refresh(ops);
         pt.refresh(ops);
-        std::mem::swap(&mut xb, &mut xt);
-        std::mem::swap(&mut pb, &mut pt);
-        theta[locked..].copy_from_slice(&theta_new);
+        std::mem::swap(&mut self.xb, &mut self.xt);
+        std::mem::swap(&mut self.pb, &mut self.pt);
+        self.theta[locked..].copy_from_slice(&theta_new);
+        Ok(())
     }
 }
 
