@@ -15,6 +15,7 @@ pub mod element;
 pub mod ordering;
 pub mod sparse;
 
+use crate::shape::{lattice_coords, lattice_index};
 pub use element::{ElementKind, UnitElement};
 use sparse::{BlockPattern, Blocks};
 
@@ -60,7 +61,7 @@ impl FemModel {
         let nloc = kind.nodes();
         let dims = grid.dims();
         let lattice = [p * dims[0] + 1, p * dims[1] + 1, p * dims[2] + 1];
-        let lidx = |x: usize, y: usize, z: usize| x + lattice[0] * (y + lattice[1] * z);
+        let lidx = |x: usize, y: usize, z: usize| lattice_index([x, y, z], lattice);
         let voxels = grid.solid_voxels();
         // Number the nodes in lattice order (keeps neighbours close in memory).
         let mut lattice_node = vec![u32::MAX; lattice.iter().product()];
@@ -165,9 +166,7 @@ impl FemModel {
 
     /// Lattice coordinates of a node (`order()` lattice steps per voxel).
     pub fn node_lattice_coords(&self, node: usize) -> [i64; 3] {
-        let l = self.node_lattice[node];
-        let [lx, ly, _] = self.lattice;
-        [l % lx, (l / lx) % ly, l / (lx * ly)].map(|c| c as i64)
+        lattice_coords(self.node_lattice[node], self.lattice).map(|c| c as i64)
     }
 
     /// Position of a node in voxel units.

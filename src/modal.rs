@@ -21,6 +21,7 @@ use crate::eigen::{self, EigenError, EigenOptions, EigenSolution, SolverKind};
 use crate::fem::{ElementKind, FemModel};
 use crate::material::{DampedMode, Material};
 use crate::modes::{ModeError, ModeSet};
+use crate::shape::lattice_index;
 use crate::shape::{ops, ShapeError, VoxelGrid};
 
 /// The nodes of a struck face with their interpolation weights (2x2 for hex8, 3x3 for
@@ -491,7 +492,7 @@ impl ModeBasis {
             }
         };
         let (bu, bw) = (basis(u), basis(w));
-        let [lx, ly, _] = self.model.lattice;
+        let lattice = self.model.lattice;
         let mut face = FaceWeights {
             nodes: [(0, 0.0); 9],
             len: 0,
@@ -503,7 +504,7 @@ impl ModeBasis {
                 l[axis] += if side > 0 { order } else { 0 };
                 l[others[0]] += i;
                 l[others[1]] += j;
-                let node = self.model.lattice_node[l[0] + lx * (l[1] + ly * l[2])];
+                let node = self.model.lattice_node[lattice_index(l, lattice)];
                 face.nodes[face.len] = (node as usize, wu * ww);
                 face.len += 1;
             }

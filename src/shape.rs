@@ -21,6 +21,23 @@ use std::hash::{Hash, Hasher};
 
 pub use fill::{SubFill, VoxelFill};
 
+/// Linear index of point `c` of a lattice of `dims` points, x fastest: `x + dims[0] (y +
+/// dims[1] z)`. Voxel grids, FEM node lattices and multigrid cell meshes all number this way.
+#[inline]
+pub fn lattice_index(c: [usize; 3], dims: [usize; 3]) -> usize {
+    c[0] + dims[0] * (c[1] + dims[1] * c[2])
+}
+
+/// Coordinates of the point with linear index `i` (the inverse of [`lattice_index`]).
+#[inline]
+pub fn lattice_coords(i: usize, dims: [usize; 3]) -> [usize; 3] {
+    [
+        i % dims[0],
+        (i / dims[0]) % dims[1],
+        i / (dims[0] * dims[1]),
+    ]
+}
+
 /// Largest number of voxels along any axis a grid may have. A 256^3 solid is ~50 million degrees
 /// of freedom, far past what a modal solve on one machine can factor.
 pub const MAX_GRID_DIM: usize = 256;
@@ -197,7 +214,7 @@ impl VoxelGrid {
     /// Linear index of voxel `(x, y, z)`.
     #[inline]
     pub fn index(&self, x: usize, y: usize, z: usize) -> usize {
-        x + self.dims[0] * (y + self.dims[1] * z)
+        lattice_index([x, y, z], self.dims)
     }
 
     /// Whether voxel `(x, y, z)` is solid; out-of-range coordinates are empty.
@@ -295,14 +312,9 @@ impl VoxelGrid {
                 dims: self.dims,
             });
         }
-        let [nx, ny, _] = self.dims;
         for (i, sub) in records {
-            self.set_fill(
-                i % nx,
-                (i / nx) % ny,
-                i / (nx * ny),
-                VoxelFill::Partial(sub),
-            );
+            let [x, y, z] = lattice_coords(i, self.dims);
+            self.set_fill(x, y, z, VoxelFill::Partial(sub));
         }
         Ok(())
     }
@@ -341,12 +353,11 @@ impl VoxelGrid {
 
     /// Coordinates of every solid voxel, in storage order.
     pub fn solid_voxels(&self) -> Vec<[usize; 3]> {
-        let [nx, ny, _] = self.dims;
         self.occupied
             .iter()
             .enumerate()
             .filter(|(_, &o)| o)
-            .map(|(i, _)| [i % nx, (i / nx) % ny, i / (nx * ny)])
+            .map(|(i, _)| lattice_coords(i, self.dims))
             .collect()
     }
 

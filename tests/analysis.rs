@@ -3,6 +3,8 @@
 //! (some pairs closer than 2 Hz), decays 0.5-200 /s, white noise at 20-40 dB SNR, a silent
 //! lead-in before the strike.
 
+mod common;
+
 use modalforge::analysis::synthetic::{case, score, Score};
 use modalforge::analysis::{extract, AnalysisOptions};
 
@@ -82,8 +84,7 @@ fn bad_recordings_are_refused_clearly() {
 fn the_cli_analyzes_a_rendered_strike() {
     let dir = std::env::temp_dir().join(format!("modalforge-analyze-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let bin = env!("CARGO_BIN_EXE_modalforge");
-    let run = |args: &[&str]| std::process::Command::new(bin).args(args).output().unwrap();
+    let run = common::modalforge;
     let truth = dir.join("truth.json");
     std::fs::write(&truth, run(&["demo-modes"]).stdout).unwrap();
     let wav = dir.join("strike.wav");

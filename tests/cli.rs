@@ -3,16 +3,11 @@
 
 use std::f64::consts::TAU;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 
-fn modalforge(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_modalforge"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
+use common::modalforge;
 
 /// `modalforge render --modes MODES --out OUT --seconds SECONDS`.
 fn render_mode_file(modes: &Path, out: &Path, seconds: &str) -> Output {

@@ -2,6 +2,9 @@
 //! with a global allocator that counts calls made on the audio thread, while an editor thread
 //! sends shape edits that the worker solves and swaps in.
 
+mod common;
+
+use common::alloc::{self, Counting};
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
     DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, Pitch,
@@ -10,48 +13,8 @@ use modalforge::engine::{
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
 use modalforge::shape::VoxelGrid;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
-
-struct Counting;
-static AUDIO_ALLOCS: AtomicUsize = AtomicUsize::new(0);
-static AUDIO_FREES: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    // Const-initialised: reading it never allocates.
-    static ON_AUDIO: Cell<bool> = const { Cell::new(false) };
-}
-
-fn on_audio() -> bool {
-    ON_AUDIO.try_with(|c| c.get()).unwrap_or(false)
-}
-
-// SAFETY: forwards to the system allocator unchanged; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if on_audio() {
-            AUDIO_ALLOCS.fetch_add(1, Ordering::SeqCst);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        if on_audio() {
-            AUDIO_FREES.fetch_add(1, Ordering::SeqCst);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        if on_audio() {
-            AUDIO_ALLOCS.fetch_add(1, Ordering::SeqCst);
-        }
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -135,11 +98,11 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
         };
         v.hit.position[0] = (block % 11) as f64 / 11.0;
 
-        ON_AUDIO.with(|c| c.set(true));
-        audio.set_voicing(v).unwrap();
-        audio.set_mode_budget(40 + (block % 50) as usize);
-        audio.process(&mut out[..len], &events);
-        ON_AUDIO.with(|c| c.set(false));
+        alloc::marked(|| {
+            audio.set_voicing(v).unwrap();
+            audio.set_mode_budget(40 + (block % 50) as usize);
+            audio.process(&mut out[..len], &events);
+        });
 
         assert!(out[..len].iter().all(|x| x.is_finite()));
         loudest = out[..len].iter().fold(loudest, |m, x| m.max(x.abs()));
@@ -149,15 +112,7 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
     }
     assert!(swaps_heard >= 4, "only {swaps_heard} objects arrived");
     assert!(loudest > 0.0, "nothing was heard");
-    assert_eq!(
-        AUDIO_ALLOCS.load(Ordering::SeqCst),
-        0,
-        "allocations on the audio thread"
-    );
-    assert_eq!(
-        AUDIO_FREES.load(Ordering::SeqCst),
-        0,
-        "frees on the audio thread"
-    );
+    assert_eq!(alloc::allocations(), 0, "allocations on the audio thread");
+    assert_eq!(alloc::frees(), 0, "frees on the audio thread");
     assert!(control.stats().active_modes.load(Ordering::Relaxed) <= 90);
 }

@@ -2,9 +2,10 @@
 //! families training never saw) it predicts FEM's band representation within stated bounds.
 //! The truth is the product's FEM, solved here for each object; no training runs in the tests.
 
+mod common;
+
 use modalforge::predictor::dataset::{self, Record};
 use modalforge::predictor::{metrics, Predictor};
-use std::process::Command;
 
 /// Held-out objects scored (a plate with holes, a handled cup, alternately).
 const OBJECTS: usize = 4;
@@ -39,12 +40,7 @@ fn the_shipped_weights_predict_held_out_objects_within_bounds() {
 
 #[test]
 fn the_cli_predicts_and_bad_weights_are_one_clear_line() {
-    let run = |args: &[&str]| {
-        Command::new(env!("CARGO_BIN_EXE_modalforge"))
-            .args(args)
-            .output()
-            .expect("binary runs")
-    };
+    let run = common::modalforge;
     let out = run(&[
         "modes",
         "--shape",

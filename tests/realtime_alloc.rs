@@ -5,29 +5,9 @@ use modalforge::modes::{CullSettings, ModeSet};
 use modalforge::synth::{
     BiquadBank, Excitation, ForcePulse, NoiseForce, OscillatorBank, SimdBackend,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod common;
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+use common::alloc::{self, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -53,26 +33,32 @@ fn strikes_renders_and_processing_do_not_allocate() {
         let mut force = vec![0f32; 4096];
         let mallet = Excitation::mallet(0.7e-3).unwrap();
 
-        let before = ALLOCS.load(Ordering::SeqCst);
-        for round in 0..20 {
-            let len = 37 + 61 * round;
-            osc.strike(mallet, 0.5).unwrap();
-            osc.render(&mut out[..len]);
-            osc.strike_with_gains(Excitation::Impulse, 1.0, &gains)
-                .unwrap();
-            osc.render(&mut out[len..]);
-            force.fill(0.0);
-            pulse.add_to(&mut force[..len]);
-            noise.add_to(&mut force[len..]);
-            biquad.process(&force, &mut out);
-        }
-        osc.reset();
-        biquad.reset();
-        let after = ALLOCS.load(Ordering::SeqCst);
+        let (allocs, frees) = (alloc::allocations(), alloc::frees());
+        alloc::marked(|| {
+            for round in 0..20 {
+                let len = 37 + 61 * round;
+                osc.strike(mallet, 0.5).unwrap();
+                osc.render(&mut out[..len]);
+                osc.strike_with_gains(Excitation::Impulse, 1.0, &gains)
+                    .unwrap();
+                osc.render(&mut out[len..]);
+                force.fill(0.0);
+                pulse.add_to(&mut force[..len]);
+                noise.add_to(&mut force[len..]);
+                biquad.process(&force, &mut out);
+            }
+            osc.reset();
+            biquad.reset();
+        });
         assert_eq!(
-            after - before,
+            alloc::allocations() - allocs,
             0,
             "{backend:?}: the real-time path allocated"
+        );
+        assert_eq!(
+            alloc::frees() - frees,
+            0,
+            "{backend:?}: the real-time path freed"
         );
         assert!(out.iter().all(|x| x.is_finite()));
     }

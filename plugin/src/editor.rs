@@ -67,10 +67,11 @@ pub enum Tool {
     Hit,
 }
 
-/// Shapes offered by "New" (the CLI's built-in shapes).
-pub const PRIMITIVES: &[&str] = &[
-    "bowl", "bar", "plate", "box", "sphere", "cylinder", "tube", "cup", "bell",
-];
+/// Shapes offered by "New": the CLI's built-in shapes, one list for both.
+pub use modalforge::shape::spec::BUILT_INS as PRIMITIVES;
+
+/// The shape "New" offers first: the default object's.
+const FIRST_PRIMITIVE: &str = "bowl";
 
 /// The editor's state and logic.
 pub struct EditorApp {
@@ -128,7 +129,10 @@ impl EditorApp {
             camera: Camera::default(),
             framed: false,
             tool: Tool::Add,
-            primitive: 0,
+            primitive: PRIMITIVES
+                .iter()
+                .position(|p| p.name == FIRST_PRIMITIVE)
+                .unwrap_or(0),
             primitive_side: 16,
             hollow_wall: 2,
             resample_side: 16,

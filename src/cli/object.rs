@@ -17,9 +17,8 @@ pub const DEFAULT_SIZE_M: f64 = 0.2;
 /// Object options.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ObjectArgs {
-    /// Shape: a built-in (bar, plate, box, sphere, cylinder, tube, bowl, cup, bell, with
-    /// parameters in voxels such as `bowl:d=32,wall=2` or `bar:64x4x4`; the README lists them),
-    /// or a .vox, .obj or .stl file.
+    /// Shape: a built-in with parameters in voxels, such as `bowl:d=32,wall=2` or `bar:64x4x4`
+    /// (the README lists them; a wrong name lists the names), or a .vox, .obj or .stl file.
     #[arg(long, value_name = "SPEC")]
     pub shape: Option<String>,
     /// Material: a preset (`modalforge materials` lists them), a .toml file, or

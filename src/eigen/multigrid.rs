@@ -28,6 +28,7 @@ use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
 use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
+use crate::shape::{lattice_coords, lattice_index};
 use faer::Par;
 use std::collections::HashMap;
 
@@ -112,11 +113,7 @@ impl Multigrid {
     /// Builds the hierarchy of `model` for blocks of up to `max_width` vectors.
     pub fn new(model: &FemModel, max_width: usize) -> Result<Self, EigenError> {
         let unit = UnitElement::new(model.kind, model.poisson_ratio);
-        let fine_dims = [
-            (model.lattice[0] - 1) / model.kind.order(),
-            (model.lattice[1] - 1) / model.kind.order(),
-            (model.lattice[2] - 1) / model.kind.order(),
-        ];
+        let fine_dims = model.grid_dims();
         let voxel_mesh = |k: Vec<f64>, m: Vec<f64>| CellMesh {
             dims: fine_dims,
             cells: model.voxels.clone(),
@@ -551,7 +548,7 @@ fn galerkin(a: &[f64], p: &[f64], nf: usize) -> Vec<f64> {
 /// The 2x2x2-coarser mesh with Galerkin cell matrices.
 fn coarsen(fine: &CellMesh) -> CellMesh {
     let dims = fine.dims.map(|d| d.div_ceil(2));
-    let index = |c: [usize; 3]| c[0] + dims[0] * (c[1] + dims[1] * c[2]);
+    let index = |c: [usize; 3]| lattice_index(c, dims);
     let mut children = vec![[u32::MAX; 8]; dims.iter().product()];
     for (cell, &id) in fine.cells.iter().zip(&fine.matrix) {
         let parent = cell.map(|v| v / 2);
@@ -590,11 +587,7 @@ fn coarsen(fine: &CellMesh) -> CellMesh {
             out.m_table.push(m);
             (out.k_table.len() - 1) as u32
         });
-        out.cells.push([
-            i % dims[0],
-            (i / dims[0]) % dims[1],
-            i / (dims[0] * dims[1]),
-        ]);
+        out.cells.push(lattice_coords(i, dims));
         out.matrix.push(id);
     }
     out
@@ -603,7 +596,7 @@ fn coarsen(fine: &CellMesh) -> CellMesh {
 /// Assembles a cell mesh: the level (with `a` empty) and its `K`, `M`.
 fn assemble(mesh: &CellMesh) -> (Level, Blocks, Blocks) {
     let lattice = mesh.dims.map(|d| d + 1);
-    let lidx = |x: usize, y: usize, z: usize| x + lattice[0] * (y + lattice[1] * z);
+    let lidx = |x: usize, y: usize, z: usize| lattice_index([x, y, z], lattice);
     let mut lattice_node = vec![u32::MAX; lattice.iter().product()];
     let corners = |c: [usize; 3]| {
         (0..8).map(move |i| lidx(c[0] + (i & 1), c[1] + ((i >> 1) & 1), c[2] + (i >> 2)))
@@ -617,11 +610,7 @@ fn assemble(mesh: &CellMesh) -> (Level, Blocks, Blocks) {
     for (l, slot) in lattice_node.iter_mut().enumerate() {
         if *slot == 0 {
             *slot = coords.len() as u32;
-            coords.push([
-                (l % lattice[0]) as i64,
-                ((l / lattice[0]) % lattice[1]) as i64,
-                (l / (lattice[0] * lattice[1])) as i64,
-            ]);
+            coords.push(lattice_coords(l, lattice).map(|c| c as i64));
         }
     }
     let elements: Vec<u32> = mesh
@@ -658,7 +647,6 @@ fn prolongation(fine_coords: &[[i64; 3]], coarse: &Level) -> Prolongation {
         coarse: Vec::new(),
         weight: Vec::new(),
     };
-    let [lx, ly, _] = coarse.lattice;
     for c in fine_coords {
         let axis = |v: i64| -> ([usize; 2], [f64; 2], usize) {
             if v % 2 == 0 {
@@ -673,7 +661,8 @@ fn prolongation(fine_coords: &[[i64; 3]], coarse: &Level) -> Prolongation {
         for z in 0..nz {
             for y in 0..ny {
                 for x in 0..nx {
-                    let node = coarse.lattice_node[ix[x] + lx * (iy[y] + ly * iz[z])];
+                    let node =
+                        coarse.lattice_node[lattice_index([ix[x], iy[y], iz[z]], coarse.lattice)];
                     debug_assert!(node != u32::MAX, "a fine node outside every coarse cell");
                     if node != u32::MAX {
                         out.coarse.push(node);

@@ -88,21 +88,6 @@ pub enum Primitive {
 }
 
 impl Primitive {
-    /// Name used in shape specs.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Primitive::Bar { .. } => "bar",
-            Primitive::Plate { .. } => "plate",
-            Primitive::Box { .. } => "box",
-            Primitive::Sphere { .. } => "sphere",
-            Primitive::Cylinder { .. } => "cylinder",
-            Primitive::Tube { .. } => "tube",
-            Primitive::Bowl { .. } => "bowl",
-            Primitive::Cup { .. } => "cup",
-            Primitive::Bell { .. } => "bell",
-        }
-    }
-
     /// Bounding box in voxels at scale 1.
     pub fn extent(&self) -> [f64; 3] {
         match *self {

@@ -41,10 +41,7 @@ pub enum ShapeSpec {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum SpecError {
     /// Unknown shape name.
-    #[error(
-        "unknown shape '{0}': use bar, plate, box, sphere, cylinder, tube, bowl, cup, bell, \
-         or a .vox/.obj/.stl file"
-    )]
+    #[error("unknown shape '{0}': use {names}, or a .vox/.obj/.stl file", names = built_in_names())]
     UnknownShape(String),
     /// Unknown key for this shape.
     #[error("shape '{shape}' has no parameter '{key}' (it takes {allowed})")]
@@ -74,42 +71,161 @@ pub enum SpecError {
     },
 }
 
-impl std::str::FromStr for ShapeSpec {
-    type Err = SpecError;
+/// A built-in shape of the spec syntax: its name, its parameters (voxels) with their defaults,
+/// and the primitive they make. [`BUILT_INS`] is the one list of shape names: parsing, the
+/// errors and the editor's "New" menu read it.
+pub struct BuiltIn {
+    /// The spec name.
+    pub name: &'static str,
+    /// Parameter keys, in positional order.
+    pub keys: &'static [&'static str],
+    /// Their defaults, voxels.
+    pub defaults: &'static [f64],
+    /// The primitive from the parameters (`keys.len()` of them).
+    make: fn(&[f64]) -> Result<Primitive, SpecError>,
+}
 
-    fn from_str(s: &str) -> Result<Self, SpecError> {
-        let lower = s.to_ascii_lowercase();
-        if lower.ends_with(".vox") {
-            return Ok(ShapeSpec::Vox(s.into()));
-        }
-        if lower.ends_with(".obj") || lower.ends_with(".stl") {
-            return Ok(ShapeSpec::Mesh(s.into()));
-        }
-        let (name, params) = s.split_once(':').unwrap_or((s, ""));
-        let name = name.trim().to_ascii_lowercase();
-        let (keys, defaults): (&[&str], &[f64]) = match name.as_str() {
-            "bar" => (&["l", "w", "h"], &[64.0, 4.0, 4.0]),
-            "plate" => (&["l", "w", "t"], &[32.0, 32.0, 2.0]),
-            "box" => (&["x", "y", "z"], &[16.0, 16.0, 16.0]),
-            "sphere" => (&["d"], &[32.0]),
-            "cylinder" => (&["d", "h"], &[16.0, 32.0]),
-            "tube" => (&["d", "h", "wall"], &[16.0, 32.0, 2.0]),
-            "bowl" => (&["d", "wall"], &[32.0, 2.0]),
-            "cup" => (&["d", "h", "wall"], &[16.0, 20.0, 2.0]),
-            "bell" => (&["d", "h", "wall"], &[24.0, 24.0, 2.0]),
-            _ => return Err(SpecError::UnknownShape(name)),
-        };
-        let mut v = defaults.to_vec();
+/// Every built-in shape (the table in the module docs).
+pub const BUILT_INS: &[BuiltIn] = &[
+    BuiltIn {
+        name: "bar",
+        keys: &["l", "w", "h"],
+        defaults: &[64.0, 4.0, 4.0],
+        make: |v| {
+            Ok(Primitive::Bar {
+                length: v[0],
+                width: v[1],
+                height: v[2],
+            })
+        },
+    },
+    BuiltIn {
+        name: "plate",
+        keys: &["l", "w", "t"],
+        defaults: &[32.0, 32.0, 2.0],
+        make: |v| {
+            Ok(Primitive::Plate {
+                length: v[0],
+                width: v[1],
+                thickness: v[2],
+            })
+        },
+    },
+    BuiltIn {
+        name: "box",
+        keys: &["x", "y", "z"],
+        defaults: &[16.0, 16.0, 16.0],
+        make: |v| {
+            Ok(Primitive::Box {
+                x: v[0],
+                y: v[1],
+                z: v[2],
+            })
+        },
+    },
+    BuiltIn {
+        name: "sphere",
+        keys: &["d"],
+        defaults: &[32.0],
+        make: |v| Ok(Primitive::Sphere { diameter: v[0] }),
+    },
+    BuiltIn {
+        name: "cylinder",
+        keys: &["d", "h"],
+        defaults: &[16.0, 32.0],
+        make: |v| {
+            Ok(Primitive::Cylinder {
+                diameter: v[0],
+                height: v[1],
+            })
+        },
+    },
+    BuiltIn {
+        name: "tube",
+        keys: &["d", "h", "wall"],
+        defaults: &[16.0, 32.0, 2.0],
+        make: |v| {
+            check_wall(v[2], v[0])?;
+            Ok(Primitive::Tube {
+                diameter: v[0],
+                height: v[1],
+                wall: v[2],
+            })
+        },
+    },
+    BuiltIn {
+        name: "bowl",
+        keys: &["d", "wall"],
+        defaults: &[32.0, 2.0],
+        make: |v| {
+            check_wall(v[1], v[0])?;
+            Ok(Primitive::Bowl {
+                diameter: v[0],
+                wall: v[1],
+            })
+        },
+    },
+    BuiltIn {
+        name: "cup",
+        keys: &["d", "h", "wall"],
+        defaults: &[16.0, 20.0, 2.0],
+        make: |v| {
+            check_wall(v[2], v[0])?;
+            Ok(Primitive::Cup {
+                diameter: v[0],
+                height: v[1],
+                wall: v[2],
+            })
+        },
+    },
+    BuiltIn {
+        name: "bell",
+        keys: &["d", "h", "wall"],
+        defaults: &[24.0, 24.0, 2.0],
+        make: |v| {
+            check_wall(v[2], v[0])?;
+            Ok(Primitive::Bell {
+                diameter: v[0],
+                height: v[1],
+                wall: v[2],
+            })
+        },
+    },
+];
+
+/// The built-in names, comma-separated.
+pub fn built_in_names() -> String {
+    let names: Vec<&str> = BUILT_INS.iter().map(|b| b.name).collect();
+    names.join(", ")
+}
+
+/// A shell's wall must leave a hollow.
+fn check_wall(wall: f64, diameter: f64) -> Result<(), SpecError> {
+    if wall * 2.0 >= diameter {
+        Err(SpecError::WallTooThick { wall, diameter })
+    } else {
+        Ok(())
+    }
+}
+
+/// A positive number of voxels.
+fn number(key: &str, value: &str) -> Result<f64, SpecError> {
+    match value.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(SpecError::BadValue {
+            key: key.into(),
+            value: value.into(),
+        }),
+    }
+}
+
+impl BuiltIn {
+    /// The shape from its parameter list (`AxBxC`, `key=value`s, `hollow=N`): the primitive and
+    /// the hollow wall.
+    fn parse(&self, params: &str) -> Result<(Primitive, Option<f64>), SpecError> {
+        let keys = self.keys;
+        let mut v = self.defaults.to_vec();
         let mut hollow = None;
-        let number = |key: &str, value: &str| -> Result<f64, SpecError> {
-            match value.trim().parse::<f64>() {
-                Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
-                _ => Err(SpecError::BadValue {
-                    key: key.into(),
-                    value: value.into(),
-                }),
-            }
-        };
         for item in params.split(',').map(str::trim).filter(|p| !p.is_empty()) {
             match item.split_once('=') {
                 Some((k, val)) => {
@@ -120,7 +236,7 @@ impl std::str::FromStr for ShapeSpec {
                         v[i] = number(&k, val)?;
                     } else {
                         return Err(SpecError::UnknownKey {
-                            shape: name,
+                            shape: self.name.into(),
                             key: k,
                             allowed: format!("{}, hollow", keys.join(", ")),
                         });
@@ -141,66 +257,28 @@ impl std::str::FromStr for ShapeSpec {
                 }
             }
         }
-        let check_wall = |wall: f64, diameter: f64| {
-            if wall * 2.0 >= diameter {
-                Err(SpecError::WallTooThick { wall, diameter })
-            } else {
-                Ok(())
-            }
-        };
-        let shape = match name.as_str() {
-            "bar" => Primitive::Bar {
-                length: v[0],
-                width: v[1],
-                height: v[2],
-            },
-            "plate" => Primitive::Plate {
-                length: v[0],
-                width: v[1],
-                thickness: v[2],
-            },
-            "box" => Primitive::Box {
-                x: v[0],
-                y: v[1],
-                z: v[2],
-            },
-            "sphere" => Primitive::Sphere { diameter: v[0] },
-            "cylinder" => Primitive::Cylinder {
-                diameter: v[0],
-                height: v[1],
-            },
-            "tube" => {
-                check_wall(v[2], v[0])?;
-                Primitive::Tube {
-                    diameter: v[0],
-                    height: v[1],
-                    wall: v[2],
-                }
-            }
-            "bowl" => {
-                check_wall(v[1], v[0])?;
-                Primitive::Bowl {
-                    diameter: v[0],
-                    wall: v[1],
-                }
-            }
-            "cup" => {
-                check_wall(v[2], v[0])?;
-                Primitive::Cup {
-                    diameter: v[0],
-                    height: v[1],
-                    wall: v[2],
-                }
-            }
-            _ => {
-                check_wall(v[2], v[0])?;
-                Primitive::Bell {
-                    diameter: v[0],
-                    height: v[1],
-                    wall: v[2],
-                }
-            }
-        };
+        Ok(((self.make)(&v)?, hollow))
+    }
+}
+
+impl std::str::FromStr for ShapeSpec {
+    type Err = SpecError;
+
+    fn from_str(s: &str) -> Result<Self, SpecError> {
+        let lower = s.to_ascii_lowercase();
+        if lower.ends_with(".vox") {
+            return Ok(ShapeSpec::Vox(s.into()));
+        }
+        if lower.ends_with(".obj") || lower.ends_with(".stl") {
+            return Ok(ShapeSpec::Mesh(s.into()));
+        }
+        let (name, params) = s.split_once(':').unwrap_or((s, ""));
+        let name = name.trim().to_ascii_lowercase();
+        let built_in = BUILT_INS
+            .iter()
+            .find(|b| b.name == name)
+            .ok_or(SpecError::UnknownShape(name))?;
+        let (shape, hollow) = built_in.parse(params)?;
         Ok(ShapeSpec::Primitive { shape, hollow })
     }
 }

@@ -1,7 +1,16 @@
 //! Independent references shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod alloc;
 pub mod smooth;
+
+/// Runs the `modalforge` binary with `args`; its exit status and output.
+pub fn modalforge(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_modalforge"))
+        .args(args)
+        .output()
+        .expect("the modalforge binary runs")
+}
 
 /// 4x4 matrix exponential by scaling and squaring with a Taylor series.
 fn expm(a: [[f64; 4]; 4]) -> [[f64; 4]; 4] {

@@ -125,16 +125,16 @@ pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
     });
     ui.horizontal_wrapped(|ui| {
         egui::ComboBox::from_id_salt("primitive")
-            .selected_text(PRIMITIVES[app.primitive])
+            .selected_text(PRIMITIVES[app.primitive].name)
             .show_ui(ui, |ui| {
-                for (i, name) in PRIMITIVES.iter().enumerate() {
-                    ui.selectable_value(&mut app.primitive, i, *name);
+                for (i, shape) in PRIMITIVES.iter().enumerate() {
+                    ui.selectable_value(&mut app.primitive, i, shape.name);
                 }
             });
         ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"))
             .on_hover_text("longest side of the new shape, voxels");
         if ui.button("New").clicked() {
-            let (spec, side) = (PRIMITIVES[app.primitive], app.primitive_side);
+            let (spec, side) = (PRIMITIVES[app.primitive].name, app.primitive_side);
             app.edit(|s| s.load_primitive(spec, side));
         }
         ui.separator();

@@ -118,7 +118,7 @@ fn primitives_hollow_and_resample() {
     assert!(s.load_primitive("/tmp/x.vox", 16).is_err());
     assert_eq!(s.count(), 8);
     // Every primitive the editor offers loads at the smallest and largest side.
-    for name in PRIMITIVES {
+    for name in PRIMITIVES.iter().map(|p| p.name) {
         for side in [8, 32] {
             s.load_primitive(name, side).unwrap();
             let d = s.bounds().unwrap().1;
