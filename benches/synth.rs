@@ -16,13 +16,8 @@ const SIZES: [usize; 4] = [64, 1_000, 10_000, 100_000];
 
 /// `n` modes spread log-uniformly over 20 Hz - 20 kHz, decays 0.5 - 20 /s, gains ~ 1/sqrt(i).
 fn modes(n: usize) -> PlayableModes {
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut rand = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = modalforge::rng::SplitMix64::new(1);
+    let mut rand = || rng.unit();
     let f: Vec<f64> = (0..n).map(|_| 20.0 * 1000f64.powf(rand())).collect();
     let d: Vec<f64> = (0..n).map(|_| 0.5 + 19.5 * rand()).collect();
     let g: Vec<f64> = (0..n).map(|i| 1.0 / (1.0 + i as f64).sqrt()).collect();

@@ -365,15 +365,11 @@ pub fn solve(
     }
 }
 
-/// A deterministic pseudo-random start block (xorshift), so solves are reproducible.
+/// A deterministic pseudo-random start block, entries uniform in `[-0.5, 0.5)`, so solves are
+/// reproducible.
 pub(crate) fn random_block(n: usize, b: usize, seed: u64) -> Mat<f64> {
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    Mat::from_fn(n, b, |_, _| {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    })
+    let mut rng = crate::rng::SplitMix64::new(seed);
+    Mat::from_fn(n, b, |_, _| rng.unit() - 0.5)
 }
 
 /// Dense symmetric eigendecomposition, eigenvalues ascending.

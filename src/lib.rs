@@ -73,6 +73,7 @@ pub mod material;
 pub mod modal;
 pub mod modes;
 pub mod predictor;
+pub mod rng;
 pub mod shape;
 pub mod synth;
 

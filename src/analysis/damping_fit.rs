@@ -183,14 +183,10 @@ mod tests {
             ),
         ];
         for (name, law) in laws {
-            let mut state = 7u64;
+            let mut rng = crate::rng::SplitMix64::new(7);
             let modes: Vec<(f64, f64)> = (0..30)
                 .map(|i| {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    let noise =
-                        1.0 + 0.03 * (((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0);
+                    let noise = 1.0 + 0.03 * rng.range(-1.0, 1.0);
                     let f = 100.0 * 150f64.powf(i as f64 / 29.0);
                     let lambda = (TAU * f).powi(2);
                     (f, 0.5 * law.coefficient(lambda) * noise)

@@ -5,14 +5,14 @@
 //! below the strongest mode, a lead-in before the strike.
 
 use super::ExtractedMode;
-use crate::predictor::dataset::Stream;
+use crate::rng::SplitMix64;
 use std::f64::consts::TAU;
 
-/// The dataset's SplitMix64 stream as uniform and normal draws.
-struct Rng(Stream);
+/// The crate's SplitMix64 stream as uniform and normal draws.
+struct Rng(SplitMix64);
 impl Rng {
     fn uniform(&mut self) -> f64 {
-        self.0.range(0.0, 1.0)
+        self.0.unit()
     }
     /// A standard normal draw (Box-Muller).
     fn gauss(&mut self) -> f64 {
@@ -39,7 +39,7 @@ pub struct Case {
 /// partner 0.5-2 Hz away (the split pairs of symmetric objects), amplitudes over 30 dB,
 /// decays log-uniform in 0.5-200 /s; noise at `snr_db` below the strongest mode.
 pub fn case(seed: u64, count: usize, snr_db: f64, duration_s: f64) -> Case {
-    let mut rng = Rng(Stream(seed));
+    let mut rng = Rng(SplitMix64::new(seed));
     let fs = if seed.is_multiple_of(2) {
         48_000.0
     } else {

@@ -265,15 +265,10 @@ mod tests {
     use super::*;
     use crate::eigen::sym_eigen;
 
-    /// A random symmetric band matrix (xorshift entries in [-1, 1)).
+    /// A random symmetric band matrix (entries uniform in [-1, 1)).
     fn random_band(n: usize, kd: usize, seed: u64) -> Mat<f64> {
-        let mut state = seed;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = crate::rng::SplitMix64::new(seed);
+        let mut next = || rng.range(-1.0, 1.0);
         let mut a = Mat::<f64>::zeros(n, n);
         for j in 0..n {
             for i in j..(j + kd + 1).min(n) {

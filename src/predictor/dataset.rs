@@ -15,6 +15,7 @@ use super::bands::{self, BandEncoding, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_
 use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 use crate::fem::ElementKind;
 use crate::modal::ModeBasis;
+use crate::rng::SplitMix64;
 use crate::shape::primitives::Primitive;
 use crate::shape::{ops, VoxelGrid, PARTIAL_RECORD_BYTES};
 use std::path::Path;
@@ -72,37 +73,16 @@ impl Family {
     }
 }
 
-/// A small deterministic random stream (SplitMix64, Steele, Lea and Flood 2014): enough for
-/// shape parameters, training's shuffles and the synthetic strikes of
-/// [`crate::analysis::synthetic`], and reproducible everywhere.
-pub(crate) struct Stream(pub(crate) u64);
-
-impl Stream {
-    fn new(seed: u64, split: u64, index: u64) -> Self {
-        let mut s = Stream(seed ^ split.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        s.0 ^= index.wrapping_mul(0xD1B5_4A32_D192_ED03);
-        s.next();
-        s
-    }
-    pub(crate) fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform integer in `0..n` (training's shuffles and augmentation draws).
-    pub(crate) fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    /// Uniform in `[lo, hi)`.
-    pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform integer in `lo..=hi`.
-    fn int(&mut self, lo: usize, hi: usize) -> usize {
-        lo + (self.next() % (hi - lo + 1) as u64) as usize
-    }
+/// The random stream of object `index` of a split: the dataset's seed, the split and the
+/// index mixed into one SplitMix64 state, so objects are independent of the order (and the
+/// threads) that make them.
+fn stream(seed: u64, split: u64, index: u64) -> SplitMix64 {
+    let state = seed
+        ^ split.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    let mut s = SplitMix64::new(state);
+    s.next_u64();
+    s
 }
 
 fn empty_box() -> VoxelGrid {
@@ -110,7 +90,7 @@ fn empty_box() -> VoxelGrid {
 }
 
 /// `shape` rasterised to fit `max_side` voxels, placed at a random position in `into`.
-fn place(into: &VoxelGrid, shape: &VoxelGrid, rng: &mut Stream, join: bool) -> VoxelGrid {
+fn place(into: &VoxelGrid, shape: &VoxelGrid, rng: &mut SplitMix64, join: bool) -> VoxelGrid {
     let d = shape.dims();
     let offset = [0, 1, 2].map(|a| rng.int(0, INPUT_SIDE.saturating_sub(d[a])));
     let op = if join { ops::union } else { ops::difference };
@@ -121,8 +101,8 @@ fn place(into: &VoxelGrid, shape: &VoxelGrid, rng: &mut Stream, join: bool) -> V
 /// that. The product scales an object to fill the box before it predicts (the size scaling law
 /// of Deep-Modal eq. 11 then maps it back), and a small solid rings above the top band at the
 /// reference: labels of small solids would be empty.
-fn solid_primitive(rng: &mut Stream, max_side: f64) -> VoxelGrid {
-    let s = |rng: &mut Stream| rng.range(3.0, max_side);
+fn solid_primitive(rng: &mut SplitMix64, max_side: f64) -> VoxelGrid {
+    let s = |rng: &mut SplitMix64| rng.range(3.0, max_side);
     let big = rng.range(0.6 * max_side, max_side);
     let shape = match rng.int(0, 3) {
         0 => Primitive::Box {
@@ -150,7 +130,7 @@ fn solid_primitive(rng: &mut Stream, max_side: f64) -> VoxelGrid {
 }
 
 /// A random thin-walled primitive.
-fn shell_primitive(rng: &mut Stream) -> VoxelGrid {
+fn shell_primitive(rng: &mut SplitMix64) -> VoxelGrid {
     let wall = rng.range(1.0, 3.0);
     let d = rng.range(12.0, 32.0);
     let h = rng.range(8.0, 32.0);
@@ -192,7 +172,7 @@ fn shell_primitive(rng: &mut Stream) -> VoxelGrid {
 }
 
 /// Thresholded trilinear value noise on a 5^3 lattice: a smooth random blob.
-fn blob(rng: &mut Stream) -> VoxelGrid {
+fn blob(rng: &mut SplitMix64) -> VoxelGrid {
     const N: usize = 5;
     let values: Vec<f64> = (0..N * N * N).map(|_| rng.range(-1.0, 1.0)).collect();
     let threshold = rng.range(-0.1, 0.3);
@@ -215,7 +195,7 @@ fn blob(rng: &mut Stream) -> VoxelGrid {
 }
 
 /// A plate with round holes.
-fn plate_with_holes(rng: &mut Stream) -> VoxelGrid {
+fn plate_with_holes(rng: &mut SplitMix64) -> VoxelGrid {
     let (l, w, t) = (
         rng.range(16.0, 32.0),
         rng.range(12.0, 32.0),
@@ -241,7 +221,7 @@ fn plate_with_holes(rng: &mut Stream) -> VoxelGrid {
 }
 
 /// A cup or tube with a bar handle on its side.
-fn handle(rng: &mut Stream) -> VoxelGrid {
+fn handle(rng: &mut SplitMix64) -> VoxelGrid {
     let d = rng.range(12.0, 22.0);
     let h = rng.range(12.0, 30.0);
     let wall = rng.range(1.5, 3.0);
@@ -294,7 +274,7 @@ pub fn object(seed: u64, held_out: bool, index: usize) -> (Family, VoxelGrid) {
     };
     let family = families[index % families.len()];
     for attempt in 0..64u64 {
-        let mut rng = Stream::new(seed, held_out as u64, (index as u64) << 8 | attempt);
+        let mut rng = stream(seed, held_out as u64, (index as u64) << 8 | attempt);
         let grid = match family {
             Family::Solid => solid_primitive(&mut rng, 32.0),
             Family::Shell => shell_primitive(&mut rng),

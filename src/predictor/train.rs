@@ -270,7 +270,7 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         let epoch = state.epoch + 1;
         let lr =
             options.learning_rate * 0.5f64.powi(((epoch - 1) / options.halve_every.max(1)) as i32);
-        let mut rng = super::dataset::Stream(
+        let mut rng = crate::rng::SplitMix64::new(
             options.seed ^ (epoch as u64).wrapping_mul(0xA24B_AED4_963E_E407),
         );
         for i in (1..order.len()).rev() {

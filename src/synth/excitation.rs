@@ -13,6 +13,7 @@
 //! `F(lambda) = pi a (1 + e^(-lambda tau)) / (2 tau (lambda^2 + a^2))`: 1 for slow modes, falling
 //! off above `1/tau` Hz, so a soft (long) mallet excites fewer high modes.
 
+use crate::rng::SplitMix64;
 use num_complex::Complex64;
 use std::f64::consts::PI;
 
@@ -141,10 +142,10 @@ impl ForcePulse {
 }
 
 /// Noise force for scraping and rolling: white noise through a one-pole low-pass, at a constant
-/// level. Deterministic for a given seed (xorshift64*), allocation-free.
+/// level. Deterministic for a given seed ([`SplitMix64`]), allocation-free.
 #[derive(Clone, Debug)]
 pub struct NoiseForce {
-    state: u64,
+    rng: SplitMix64,
     lowpass_coeff: f32,
     lowpass_state: f32,
     level: f32,
@@ -155,7 +156,7 @@ impl NoiseForce {
     pub fn new(level: f32, cutoff_hz: f64, sample_rate_hz: f64, seed: u64) -> Self {
         let cutoff = cutoff_hz.clamp(1.0, 0.45 * sample_rate_hz);
         Self {
-            state: seed | 1,
+            rng: SplitMix64::new(seed),
             lowpass_coeff: (1.0 - (-2.0 * PI * cutoff / sample_rate_hz).exp()) as f32,
             lowpass_state: 0.0,
             level,
@@ -165,10 +166,7 @@ impl NoiseForce {
     /// Adds the next `out.len()` force samples into `out`.
     pub fn add_to(&mut self, out: &mut [f32]) {
         for o in out.iter_mut() {
-            self.state ^= self.state >> 12;
-            self.state ^= self.state << 25;
-            self.state ^= self.state >> 27;
-            let bits = self.state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40;
+            let bits = self.rng.next_u64() >> 40;
             // Uniform in [-1, 1): variance 1/3, so scale by sqrt(3) for unit RMS.
             let white = (bits as f32 / (1u64 << 23) as f32 - 1.0) * 1.732_050_8;
             self.lowpass_state += self.lowpass_coeff * (white * self.level - self.lowpass_state);
