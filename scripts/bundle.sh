@@ -3,8 +3,7 @@
 # Uses cargo-nice-plug from crates.io (nice-plug's bundler; no git-only tool), installed once.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if ! cargo nice-plug --help >/dev/null 2>&1; then
-  cargo install cargo-nice-plug --version 0.1.1 --locked
-fi
+source scripts/need.sh
+nice_plug_need
 cargo nice-plug bundle modalforge-plugin --release "$@"
 ls -d target/bundled/*

@@ -8,9 +8,7 @@ bash scripts/bundle.sh
 # `--tests` resolves features as `cargo test --release` does (dev-dependencies included), so
 # after scripts/test.sh's test run this builds nothing; a plain `--bin` build recompiled faer.
 cargo build --release --locked --bin modalforge --tests
+source scripts/need.sh
+host_venv_need
 VENV=target/host-venv
-if [ ! -x "$VENV/bin/python" ]; then
-  python3 -m venv "$VENV" || { apt-get update -qq && apt-get install -y -qq python3-venv && python3 -m venv "$VENV"; }
-fi
-"$VENV/bin/pip" install -q --disable-pip-version-check pedalboard==0.9.* mido numpy
 "$VENV/bin/python" plugin/tests/host_test.py target/bundled/ModalForge.vst3 target/release/modalforge

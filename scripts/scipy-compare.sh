@@ -7,10 +7,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=target/scipy-compare
 venv=target/scipy-venv
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet scipy numpy
-fi
+source scripts/need.sh
+venv_need "$venv" scipy numpy
 cargo bench --locked --bench interactive -- --scipy "$out"
 OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
   "$venv/bin/python" scripts/scipy_eigsh.py "$out" | tee "$out/report.txt"

@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-docs/editor.png}"
-source scripts/apt-need.sh
+source scripts/need.sh
 apt_need xvfb x11-apps netpbm libasound2-dev libjack-jackd2-dev
 cargo build --locked --release -p modalforge-standalone
 display=":$((90 + RANDOM % 100))"

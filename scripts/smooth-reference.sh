@@ -9,10 +9,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/smooth-venv
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet gmsh scikit-fem scipy numpy meshio
-fi
+source scripts/need.sh
+venv_need "$venv" gmsh scikit-fem scipy numpy meshio
 mkdir -p target/smooth
 "$venv/bin/python" scripts/smooth_reference.py "$@" > target/smooth/references.json
 echo "wrote target/smooth/references.json"

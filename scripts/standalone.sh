@@ -6,7 +6,7 @@
 # packages it links against when they are missing (apt, as root or through sudo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/apt-need.sh
+source scripts/need.sh
 apt_need libasound2-dev libjack-jackd2-dev
 cargo build --locked --release -p modalforge-standalone
 exec target/release/modalforge-standalone "$@"
