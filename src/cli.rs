@@ -172,6 +172,19 @@ pub enum CliError {
     /// A bad option value.
     #[error("{0}")]
     Option(String),
+    /// Reading or writing a file or directory.
+    #[error("cannot {action} {path}: {source}")]
+    Io {
+        /// `read`, `write` or `create`.
+        action: &'static str,
+        /// The file or directory.
+        path: PathBuf,
+        /// What went wrong.
+        source: std::io::Error,
+    },
+    /// Training, or reading the dataset or the weights.
+    #[error(transparent)]
+    Train(#[from] crate::predictor::train::TrainError),
     /// Creating or writing the WAV file.
     #[error("cannot write {path}: {source}")]
     Wav {
@@ -210,7 +223,11 @@ fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
         args.seed,
         threads,
     )
-    .map_err(|e| CliError::Option(format!("cannot write {}: {e}", args.out.display())))?;
+    .map_err(|source| CliError::Io {
+        action: "write",
+        path: args.out.clone(),
+        source,
+    })?;
     Ok(format!(
         "{}: {} written, {} kept from an earlier run, {} failed",
         args.out.display(),
@@ -276,10 +293,11 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
                         format!(
                             "{} {}",
                             args.object.material,
-                            args.object
-                                .shape
-                                .as_deref()
-                                .unwrap_or("bar:64x4x4 (0.32 m)")
+                            args.object.shape.as_deref().unwrap_or(&format!(
+                                "{} ({} m)",
+                                object::DEFAULT_SHAPE,
+                                crate::demo::BAR_LENGTH_M
+                            ))
                         )
                     }
                 )
@@ -292,43 +310,20 @@ fn option_error(msg: String) -> CliError {
     CliError::Option(msg)
 }
 
-/// `modalforge render`.
+/// The peak a normalised render reaches: -1 dBFS, `10^(-1/20)`.
+const NORMALIZED_PEAK: f32 = 0.891_250_9;
+
+/// Scraping noise: its level per unit of velocity and its low-pass cutoff.
+const SCRAPE_LEVEL_PER_VELOCITY: f64 = 0.05;
+const SCRAPE_CUTOFF_HZ: f64 = 4000.0;
+
+/// `modalforge render`: the modes (a file, or an object solved), culled for the sample rate,
+/// rendered twice (the peak for normalisation, then the WAV).
 pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
     let fs = args.rate as f64;
     let excitation = Excitation::mallet(args.hardness)?;
     crate::synth::oscillator::check_velocity(args.velocity)?;
-    let modes = match &args.modes {
-        Some(path) => ModeSet::from_json_file(path)?,
-        None => {
-            let mut object_args = args.object.clone();
-            if object_args.shape.is_none()
-                && object_args.size.is_none()
-                && object_args.voxel_size.is_none()
-            {
-                object_args.size = Some(0.32);
-            }
-            let object = object::Object::from_args(&object_args, Some(args.fmax))?;
-            if object.neural {
-                let (predicted, hit) = object.predict(&object_args)?;
-                let report =
-                    object::neural_report(&object, &predicted, &hit, None, Some(args.fmax), false);
-                let (mut f, mut d, mut g) = (Vec::new(), Vec::new(), Vec::new());
-                for m in report.modes.iter().filter(|m| !m.overdamped) {
-                    f.push(m.freq_hz);
-                    d.push(m.decay_per_s);
-                    g.push(m.gain);
-                }
-                ModeSet::new(f, d, g)?
-            } else {
-                let count = object.count(None, Some(args.fmax))?;
-                let basis = object.solve(count, object_args.tolerance)?;
-                let hit = object.hit(&basis, &object_args)?;
-                basis
-                    .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
-                    .map_err(object::ObjectError::from)?
-            }
-        }
-    };
+    let modes = render_modes(args)?;
     let (playable, report) = modes.playable(fs, &CullSettings::default())?;
     let performance = match args.scrape {
         None => Performance::Strike {
@@ -337,8 +332,8 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
         },
         Some(s) if s.is_finite() && s > 0.0 && s <= MAX_SECONDS => Performance::Scrape {
             seconds: s,
-            level: 0.05 * args.velocity,
-            cutoff_hz: 4000.0,
+            level: SCRAPE_LEVEL_PER_VELOCITY * args.velocity,
+            cutoff_hz: SCRAPE_CUTOFF_HZ,
         },
         Some(s) => {
             return Err(option_error(format!(
@@ -356,14 +351,16 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
         }
         None => (onset_s + playable.ring_time_s(60.0)).clamp(0.5, 30.0),
     };
-    let bank = args.bank;
     let n = (seconds * fs).round().max(1.0) as usize;
     let fade = ((0.01 * fs) as usize).min(n / 4);
+    let render = |sink: &mut dyn FnMut(&[f32]) -> Result<(), hound::Error>| {
+        render::render::<hound::Error>(&playable, args.bank, performance, n, fade, sink)
+    };
 
     // Pass 1: the peak, for normalisation (rendering is deterministic and cheap).
     let mut raw_peak = 0f32;
     if !args.no_normalize {
-        render::render::<hound::Error>(&playable, bank, performance, n, fade, |b| {
+        render(&mut |b| {
             raw_peak = b.iter().fold(raw_peak, |p, x| p.max(x.abs()));
             Ok(())
         })?;
@@ -371,10 +368,66 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
     let gain = if args.no_normalize || raw_peak == 0.0 {
         1.0
     } else {
-        0.891_250_9 / raw_peak
+        NORMALIZED_PEAK / raw_peak
     };
+    // Pass 2: the WAV.
+    let peak = write_wav(args, gain, render)?;
+    if args.no_normalize {
+        raw_peak = peak;
+    }
+    Ok(RenderSummary {
+        out: args.out.clone(),
+        seconds: n as f64 / fs,
+        sample_rate_hz: args.rate,
+        bits: args.bits,
+        bank: args.bank.to_string(),
+        backend: SimdBackend::detect().name(),
+        modes: report,
+        raw_peak,
+        gain,
+    })
+}
 
-    // Pass 2: write.
+/// The modes `render` plays: the mode file, or the object (default: the demo bar's shape and
+/// length) solved by FEM or predicted, voiced for the strike.
+fn render_modes(args: &RenderArgs) -> Result<ModeSet, CliError> {
+    if let Some(path) = &args.modes {
+        return Ok(ModeSet::from_json_file(path)?);
+    }
+    let mut object_args = args.object.clone();
+    if object_args.shape.is_none() && object_args.size.is_none() && object_args.voxel_size.is_none()
+    {
+        object_args.size = Some(crate::demo::BAR_LENGTH_M);
+    }
+    let object = object::Object::from_args(&object_args, Some(args.fmax))?;
+    if object.neural {
+        let (predicted, hit) = object.predict(&object_args)?;
+        let report = object::neural_report(&object, &predicted, &hit, None, Some(args.fmax), false);
+        let (mut f, mut d, mut g) = (Vec::new(), Vec::new(), Vec::new());
+        for m in report.modes.iter().filter(|m| !m.overdamped) {
+            f.push(m.freq_hz);
+            d.push(m.decay_per_s);
+            g.push(m.gain);
+        }
+        return Ok(ModeSet::new(f, d, g)?);
+    }
+    let count = object.count(None, Some(args.fmax))?;
+    let basis = object.solve(count, object_args.tolerance)?;
+    let hit = object.hit(&basis, &object_args)?;
+    Ok(basis
+        .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
+        .map_err(object::ObjectError::from)?)
+}
+
+/// Writes `render`'s samples times `gain` to `args.out` in the format `--bits` asks for;
+/// returns the peak written.
+fn write_wav(
+    args: &RenderArgs,
+    gain: f32,
+    render: impl Fn(
+        &mut dyn FnMut(&[f32]) -> Result<(), hound::Error>,
+    ) -> Result<(), RenderError<hound::Error>>,
+) -> Result<f32, CliError> {
     let spec = hound::WavSpec {
         channels: 1,
         sample_rate: args.rate,
@@ -392,7 +445,7 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
     let mut writer = hound::WavWriter::create(&args.out, spec).map_err(wav_err)?;
     let bits = args.bits;
     let mut peak = 0f32;
-    render::render::<hound::Error>(&playable, bank, performance, n, fade, |b| {
+    render(&mut |b| {
         for &x in b {
             let y = x * gain;
             peak = peak.max(y.abs());
@@ -405,20 +458,7 @@ pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
         Ok(())
     })?;
     writer.finalize().map_err(wav_err)?;
-    if args.no_normalize {
-        raw_peak = peak;
-    }
-    Ok(RenderSummary {
-        out: args.out.clone(),
-        seconds: n as f64 / fs,
-        sample_rate_hz: args.rate,
-        bits: args.bits,
-        bank: bank.to_string(),
-        backend: SimdBackend::detect().name(),
-        modes: report,
-        raw_peak,
-        gain,
-    })
+    Ok(peak)
 }
 
 fn to_int(y: f32, full_scale: f32) -> i32 {

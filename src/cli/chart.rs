@@ -284,16 +284,13 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
     }
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| CliError::Option("chart: the bundled font is unreadable".into()))?;
-    let clamp = |v: f64| v.max(1e-3);
-    let (t_lo, t_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
-        (lo.min(p.time_ms.max(0.1)), hi.max(p.time_ms.max(0.1)))
-    });
-    let (e_lo, e_hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
-        (
-            lo.min(clamp(p.mean_error_percent)),
-            hi.max(clamp(p.mean_error_percent)),
-        )
-    });
+    let span = |value: &dyn Fn(&ChartPoint) -> f64| {
+        let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(value(p)), hi.max(value(p)))
+        });
+        (lo * 0.7)..(hi * 1.4)
+    };
+    let axes = (span(&plotted_time), span(&plotted_error));
     let mut shapes: Vec<&str> = Vec::new();
     for p in points {
         if !shapes.contains(&p.shape.as_str()) {
@@ -308,117 +305,156 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
             ("sans-serif", 24),
         )
         .map_err(|e| fail(&e))?;
-    let palette = [
-        ("hex8", RGBColor(214, 39, 40)),
-        ("hex8i", RGBColor(31, 119, 180)),
-        ("hex27", RGBColor(44, 160, 44)),
-    ];
-    let colour_of = |element: &str| {
-        palette
-            .iter()
-            .find(|(e, _)| *e == element)
-            .map(|(_, c)| *c)
-            .unwrap_or(RGBColor(120, 120, 120))
-    };
     for (panel, shape) in root.split_evenly((1, shapes.len())).iter().zip(&shapes) {
-        let mut chart = ChartBuilder::on(panel)
-            .caption(*shape, ("sans-serif", 22))
-            .margin(15)
-            .x_label_area_size(50)
-            .y_label_area_size(70)
-            .build_cartesian_2d(
-                (t_lo * 0.7..t_hi * 1.4).log_scale(),
-                (e_lo * 0.7..e_hi * 1.4).log_scale(),
-            )
-            .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("time (ms)")
-            .x_label_formatter(&|v| format!("{v:.0}"))
-            .y_label_formatter(&|v| format!("{v:.2}"))
-            .y_desc("mean frequency error (%)")
-            .label_style(("sans-serif", 15))
-            .draw()
-            .map_err(|e| fail(&e))?;
-        let mut series: Vec<(&str, &str, f64)> = Vec::new();
-        for p in points.iter().filter(|p| p.shape == *shape) {
-            let key = (p.element.as_str(), p.solver.as_str(), p.tolerance);
-            if !series.contains(&key) {
-                series.push(key);
-            }
-        }
-        for (element, solver, tolerance) in series {
-            let mut run: Vec<&ChartPoint> = points
-                .iter()
-                .filter(|p| {
-                    p.shape == *shape
-                        && p.element == element
-                        && p.solver == solver
-                        && p.tolerance == tolerance
-                })
-                .collect();
-            run.sort_by_key(|p| p.resolution);
-            let xy: Vec<(f64, f64)> = run
-                .iter()
-                .map(|p| (p.time_ms.max(0.1), clamp(p.mean_error_percent)))
-                .collect();
-            let colour = colour_of(element);
-            let line = if tolerance > 1e-5 {
-                colour.mix(0.35).stroke_width(1)
-            } else {
-                colour.mix(0.8).stroke_width(2)
-            };
-            chart
-                .draw_series(LineSeries::new(xy.clone(), line))
-                .map_err(|e| fail(&e))?;
-            let style = colour.filled();
-            let label = format!("{element} {solver} {tolerance:.0e}");
-            if solver == "lanczos" {
-                chart
-                    .draw_series(xy.iter().map(|&p| Circle::new(p, 5, style)))
-                    .map_err(|e| fail(&e))?
-                    .label(label)
-                    .legend(move |(x, y)| Circle::new((x, y), 5, style));
-            } else {
-                chart
-                    .draw_series(xy.iter().map(|&p| TriangleMarker::new(p, 6, style)))
-                    .map_err(|e| fail(&e))?
-                    .label(label)
-                    .legend(move |(x, y)| TriangleMarker::new((x, y), 6, style));
-            }
-            // Resolution beside each point of the accurate runs.
-            if tolerance <= 1e-5 && solver != "lanczos" || element == "hex8" {
-                chart
-                    .draw_series(run.iter().zip(&xy).map(|(p, &(x, y))| {
-                        Text::new(
-                            format!("{}", p.resolution),
-                            (x * 1.08, y),
-                            ("sans-serif", 12).into_font().color(&colour),
-                        )
-                    }))
-                    .map_err(|e| fail(&e))?;
-            }
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 13))
-            .draw()
-            .map_err(|e| fail(&e))?;
+        draw_panel(panel, shape, points, axes.clone()).map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())
 }
 
+/// A point's time on the chart, ms (at least 0.1: the axis is logarithmic).
+fn plotted_time(p: &ChartPoint) -> f64 {
+    p.time_ms.max(0.1)
+}
+
+/// A point's error on the chart, % (at least 1e-3: the axis is logarithmic).
+fn plotted_error(p: &ChartPoint) -> f64 {
+    p.mean_error_percent.max(1e-3)
+}
+
+/// The colour of an element's series.
+fn colour_of(element: &str) -> RGBColor {
+    match element {
+        "hex8" => RGBColor(214, 39, 40),
+        "hex8i" => RGBColor(31, 119, 180),
+        "hex27" => RGBColor(44, 160, 44),
+        _ => RGBColor(120, 120, 120),
+    }
+}
+
+type Panel<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+type LogChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
+
+/// One shape's panel: axes, a series per (element, solver, tolerance), the legend.
+fn draw_panel(
+    panel: &Panel<'_>,
+    shape: &str,
+    points: &[ChartPoint],
+    (time_ms, error_percent): (std::ops::Range<f64>, std::ops::Range<f64>),
+) -> Result<(), String> {
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let mut chart = ChartBuilder::on(panel)
+        .caption(shape, ("sans-serif", 22))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(time_ms.log_scale(), error_percent.log_scale())
+        .map_err(|e| text(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("time (ms)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.2}"))
+        .y_desc("mean frequency error (%)")
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(|e| text(&e))?;
+    let mut series: Vec<(&str, &str, f64)> = Vec::new();
+    for p in points.iter().filter(|p| p.shape == shape) {
+        let key = (p.element.as_str(), p.solver.as_str(), p.tolerance);
+        if !series.contains(&key) {
+            series.push(key);
+        }
+    }
+    for (element, solver, tolerance) in series {
+        let mut run: Vec<&ChartPoint> = points
+            .iter()
+            .filter(|p| {
+                p.shape == shape
+                    && p.element == element
+                    && p.solver == solver
+                    && p.tolerance == tolerance
+            })
+            .collect();
+        run.sort_by_key(|p| p.resolution);
+        draw_run(&mut chart, &run).map_err(|e| text(&e))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .draw()
+        .map_err(|e| text(&e))?;
+    Ok(())
+}
+
+/// One series (same element, solver and tolerance, by resolution): a line, markers (circles
+/// for Lanczos, triangles otherwise) with a legend entry, and the resolution beside the points
+/// of the accurate iterative runs and of hex8.
+fn draw_run(
+    chart: &mut LogChart<'_, '_>,
+    run: &[&ChartPoint],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let Some(first) = run.first() else {
+        return Ok(());
+    };
+    let (element, solver, tolerance) = (
+        first.element.as_str(),
+        first.solver.as_str(),
+        first.tolerance,
+    );
+    let xy: Vec<(f64, f64)> = run
+        .iter()
+        .map(|p| (plotted_time(p), plotted_error(p)))
+        .collect();
+    let colour = colour_of(element);
+    let line = if tolerance > 1e-5 {
+        colour.mix(0.35).stroke_width(1)
+    } else {
+        colour.mix(0.8).stroke_width(2)
+    };
+    chart.draw_series(LineSeries::new(xy.clone(), line))?;
+    let style = colour.filled();
+    let label = format!("{element} {solver} {tolerance:.0e}");
+    if solver == "lanczos" {
+        chart
+            .draw_series(xy.iter().map(|&p| Circle::new(p, 5, style)))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x, y), 5, style));
+    } else {
+        chart
+            .draw_series(xy.iter().map(|&p| TriangleMarker::new(p, 6, style)))?
+            .label(label)
+            .legend(move |(x, y)| TriangleMarker::new((x, y), 6, style));
+    }
+    if tolerance <= 1e-5 && solver != "lanczos" || element == "hex8" {
+        chart.draw_series(run.iter().zip(&xy).map(|(p, &(x, y))| {
+            Text::new(
+                format!("{}", p.resolution),
+                (x * 1.08, y),
+                ("sans-serif", 12).into_font().color(&colour),
+            )
+        }))?;
+    }
+    Ok(())
+}
+
 /// Runs `modalforge chart`.
 pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| CliError::Option(format!("cannot create {}: {e}", args.out.display())))?;
+    std::fs::create_dir_all(&args.out).map_err(|source| CliError::Io {
+        action: "create",
+        path: args.out.clone(),
+        source,
+    })?;
     if let Some(csv) = &args.from {
-        let text = std::fs::read_to_string(csv)
-            .map_err(|e| CliError::Option(format!("cannot read {}: {e}", csv.display())))?;
+        let text = std::fs::read_to_string(csv).map_err(|source| CliError::Io {
+            action: "read",
+            path: csv.clone(),
+            source,
+        })?;
         let points =
             from_csv(&text).map_err(|e| CliError::Option(format!("{}: {e}", csv.display())))?;
         let png = args.out.join("chart.png");
@@ -439,8 +475,11 @@ pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
         )
     })?;
     let csv = args.out.join("chart.csv");
-    std::fs::write(&csv, to_csv(&points))
-        .map_err(|e| CliError::Option(format!("cannot write {}: {e}", csv.display())))?;
+    std::fs::write(&csv, to_csv(&points)).map_err(|source| CliError::Io {
+        action: "write",
+        path: csv.clone(),
+        source,
+    })?;
     let png = args.out.join("chart.png");
     plot(&points, &png)?;
     Ok(format!(

@@ -11,6 +11,9 @@ use crate::shape::vox::{self, VoxError};
 use crate::shape::{ops, VoxelGrid};
 use serde::Serialize;
 
+/// The shape without `--shape`: the demo bar's (`render` also gives it the demo bar's length).
+pub const DEFAULT_SHAPE: &str = "bar:64x4x4";
+
 /// Default largest extent of an object when neither `--size` nor `--voxel-size` is given.
 pub const DEFAULT_SIZE_M: f64 = 0.2;
 
@@ -146,6 +149,9 @@ pub enum ObjectError {
     /// A bad option value.
     #[error("{0}")]
     Option(String),
+    /// The neural predictor cannot answer.
+    #[error(transparent)]
+    Predictor(#[from] crate::predictor::PredictorError),
 }
 
 /// A shape ready to solve, with its physical scale.
@@ -213,24 +219,117 @@ pub fn auto_resolution(
     by_wave.max(by_wall).clamp(8.0, 96.0) as usize
 }
 
+/// `--material`, with `--damping`'s law when given.
+fn material_of(args: &ObjectArgs) -> Result<Material, ObjectError> {
+    let material = Material::parse(&args.material)?;
+    let Some(law) = args.damping else {
+        return Ok(material);
+    };
+    material.clone().with_damping_law(law).ok_or_else(|| {
+        let have: Vec<&str> = material
+            .damping_models
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect();
+        ObjectError::Option(format!(
+            "material {} has no damping model '{law}' (it has {})",
+            material.name,
+            have.join(", ")
+        ))
+    })
+}
+
+/// What `--resolution` needs to pick a resolution.
+struct Resolution<'a> {
+    args: &'a ObjectArgs,
+    material: &'a Material,
+    element: ElementKind,
+    size_m: f64,
+    fmax_hz: Option<f64>,
+}
+
+impl Resolution<'_> {
+    /// Voxels along the longest side for a shape whose thinnest feature is `thinnest` of its
+    /// `longest` side: `--resolution N`, `auto` (from `--fmax`), or `None` for the shape's own.
+    fn voxels(&self, longest: f64, thinnest: f64) -> Result<Option<usize>, ObjectError> {
+        match self.args.resolution.as_deref() {
+            None => Ok(None),
+            Some("auto") => {
+                let f = self
+                    .fmax_hz
+                    .ok_or_else(|| ObjectError::Option("--resolution auto needs --fmax".into()))?;
+                Ok(Some(self.auto(thinnest / longest, f)))
+            }
+            Some(n) => match n.parse::<usize>() {
+                Ok(r) if (1..=crate::shape::MAX_GRID_DIM).contains(&r) => Ok(Some(r)),
+                _ => Err(ObjectError::Option(format!(
+                    "--resolution {n} must be auto or a whole number from 1 to {}",
+                    crate::shape::MAX_GRID_DIM
+                ))),
+            },
+        }
+    }
+
+    fn auto(&self, thinnest_fraction: f64, fmax_hz: f64) -> usize {
+        auto_resolution(
+            self.material,
+            self.element,
+            self.size_m,
+            thinnest_fraction,
+            fmax_hz,
+        )
+    }
+}
+
+/// The voxels of a spec at the resolution asked for (scale: one voxel per unit until the
+/// physical size is applied).
+fn voxels_of(
+    spec: &ShapeSpec,
+    staircase: bool,
+    resolution: &Resolution,
+) -> Result<VoxelGrid, ObjectError> {
+    Ok(match spec {
+        ShapeSpec::Primitive { shape, hollow } => {
+            let ext = shape.extent();
+            let longest = ext.iter().copied().fold(0.0, f64::max);
+            let scale = match resolution.voxels(longest, shape.thinnest())? {
+                Some(r) => r as f64 / longest,
+                None => 1.0,
+            };
+            let mut grid = if staircase {
+                shape.rasterize_staircase(scale, 1.0)
+            } else {
+                shape.rasterize(scale, 1.0)
+            }
+            .map_err(ModalError::from)?;
+            if let Some(w) = hollow {
+                grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
+            }
+            grid
+        }
+        ShapeSpec::Vox(path) => vox::read_vox(path, 1.0)?,
+        ShapeSpec::Mesh(path) => {
+            // A mesh's thinnest feature is unknown: assume a twentieth of its size; without
+            // --fmax or --resolution it gets the predictor's and the editor's 32 voxels.
+            const MESH_THINNEST: f64 = 0.05;
+            const MESH_VOXELS: usize = 32;
+            let m = mesh::read_mesh(path)?;
+            let name = path.display().to_string();
+            let r = match resolution.voxels(1.0, MESH_THINNEST)? {
+                Some(r) => r,
+                None => resolution
+                    .fmax_hz
+                    .map_or(MESH_VOXELS, |f| resolution.auto(MESH_THINNEST, f)),
+            };
+            mesh::voxelize(&m, r, &name)?
+        }
+    })
+}
+
 impl Object {
     /// Builds the object from the options; `fmax_hz` drives `--resolution auto`.
     pub fn from_args(args: &ObjectArgs, fmax_hz: Option<f64>) -> Result<Self, ObjectError> {
-        let mut material = Material::parse(&args.material)?;
-        if let Some(law) = args.damping {
-            material = material.clone().with_damping_law(law).ok_or_else(|| {
-                let have: Vec<&str> = material
-                    .damping_models
-                    .iter()
-                    .map(|(n, _)| n.as_str())
-                    .collect();
-                ObjectError::Option(format!(
-                    "material {} has no damping model '{law}' (it has {})",
-                    material.name,
-                    have.join(", ")
-                ))
-            })?;
-        }
+        let material = material_of(args)?;
         let element = args.element;
         let (solver, neural) = match args.solver {
             SolverChoice::Fem(kind) => (kind, false),
@@ -240,63 +339,15 @@ impl Object {
             positive("--voxel-size", v)?;
         }
         let size_m = positive("--size", args.size.unwrap_or(DEFAULT_SIZE_M))?;
-        let spec: ShapeSpec = args.shape.as_deref().unwrap_or("bar:64x4x4").parse()?;
-        let resolution = |longest: f64, thinnest: f64| -> Result<Option<usize>, ObjectError> {
-            match args.resolution.as_deref() {
-                None => Ok(None),
-                Some("auto") => {
-                    let f = fmax_hz.ok_or_else(|| {
-                        ObjectError::Option("--resolution auto needs --fmax".into())
-                    })?;
-                    Ok(Some(auto_resolution(
-                        &material,
-                        element,
-                        size_m,
-                        thinnest / longest,
-                        f,
-                    )))
-                }
-                Some(n) => match n.parse::<usize>() {
-                    Ok(r) if (1..=crate::shape::MAX_GRID_DIM).contains(&r) => Ok(Some(r)),
-                    _ => Err(ObjectError::Option(format!(
-                        "--resolution {n} must be auto or a whole number from 1 to {}",
-                        crate::shape::MAX_GRID_DIM
-                    ))),
-                },
-            }
+        let resolution = Resolution {
+            args,
+            material: &material,
+            element,
+            size_m,
+            fmax_hz,
         };
-        let grid = match &spec {
-            ShapeSpec::Primitive { shape, hollow } => {
-                let ext = shape.extent();
-                let longest = ext.iter().copied().fold(0.0, f64::max);
-                let scale = match resolution(longest, shape.thinnest())? {
-                    Some(r) => r as f64 / longest,
-                    None => 1.0,
-                };
-                let mut grid = if args.staircase {
-                    shape.rasterize_staircase(scale, 1.0)
-                } else {
-                    shape.rasterize(scale, 1.0)
-                }
-                .map_err(ModalError::from)?;
-                if let Some(w) = hollow {
-                    grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
-                }
-                grid
-            }
-            ShapeSpec::Vox(path) => vox::read_vox(path, 1.0)?,
-            ShapeSpec::Mesh(path) => {
-                let m = mesh::read_mesh(path)?;
-                let name = path.display().to_string();
-                let r = match resolution(1.0, 0.05)? {
-                    Some(r) => r,
-                    None => {
-                        fmax_hz.map_or(32, |f| auto_resolution(&material, element, size_m, 0.05, f))
-                    }
-                };
-                mesh::voxelize(&m, r, &name)?
-            }
-        };
+        let spec: ShapeSpec = args.shape.as_deref().unwrap_or(DEFAULT_SHAPE).parse()?;
+        let grid = voxels_of(&spec, args.staircase, &resolution)?;
         // Physical scale: --voxel-size, else --size over the grid's longest side.
         let longest_vox = *grid.dims().iter().max().unwrap() as f64;
         let h = args.voxel_size.unwrap_or(size_m / longest_vox);
@@ -324,8 +375,7 @@ impl Object {
         let predictor = match &args.weights {
             Some(path) => crate::predictor::Predictor::from_file(path),
             None => crate::predictor::Predictor::shipped(),
-        }
-        .map_err(|e| ObjectError::Option(e.to_string()))?;
+        }?;
         if self.grid.dims().into_iter().max().unwrap_or(0) != crate::predictor::bands::INPUT_SIDE {
             eprintln!(
                 "note: the shape ({:?} voxels) is resampled to fill the predictor's {}^3 box",
@@ -333,9 +383,7 @@ impl Object {
                 crate::predictor::bands::INPUT_SIDE
             );
         }
-        let predicted = predictor
-            .predict(&self.grid)
-            .map_err(|e| ObjectError::Option(e.to_string()))?;
+        let predicted = predictor.predict(&self.grid)?;
         let h = self.grid.voxel_size_m();
         let [nx, ny, nz] = self.grid.dims();
         let mut hit = Hit {

@@ -95,9 +95,7 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
             args.learning_rate
         )));
     }
-    let state = thread_pool(args.threads)?
-        .install(|| train::train(&options))
-        .map_err(|e| CliError::Option(e.to_string()))?;
+    let state = thread_pool(args.threads)?.install(|| train::train(&options))?;
     let last = state.history.last();
     Ok(format!(
         "{} epochs, {} steps, {:.0} s of training; weights in {}{}",
@@ -114,10 +112,8 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
 /// Runs `modalforge predictor eval`.
 pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
-    let model =
-        train::load_model(&args.weights, &device).map_err(|e| CliError::Option(e.to_string()))?;
-    let held: Vec<Record> = train::read_split(&args.data, true)
-        .map_err(|e| CliError::Option(e.to_string()))?
+    let model = train::load_model(&args.weights, &device)?;
+    let held: Vec<Record> = train::read_split(&args.data, true)?
         .iter()
         .filter_map(|b| Record::decode(b).ok())
         .take(args.limit.unwrap_or(usize::MAX))
@@ -132,8 +128,7 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     let t0 = std::time::Instant::now();
     let network = thread_pool(Some(1))?.install(|| metrics::evaluate(&model, &held, &device));
     let per_shape_ms = t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64;
-    let train: Vec<Record> = train::read_split(&args.data, false)
-        .map_err(|e| CliError::Option(e.to_string()))?
+    let train: Vec<Record> = train::read_split(&args.data, false)?
         .iter()
         .filter_map(|b| Record::decode(b).ok())
         .collect();
