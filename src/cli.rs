@@ -3,7 +3,7 @@
 //! Where it sits: the outermost layer. `modes` builds an object ([`object`]: shape, material,
 //! element, solver, strike), solves it and prints its modes; `render` takes a mode file or solves
 //! an object the same way, culls the modes, renders one strike or scrape with
-//! [`crate::synth::render`] and writes a WAV with hound. Every failure is one line on stderr and
+//! [`modalforge::synth::render`] and writes a WAV with hound. Every failure is one line on stderr and
 //! a non-zero exit, never a panic. `chart` ([`chart`]) sweeps the solvers' speed against their
 //! accuracy.
 
@@ -12,11 +12,11 @@ pub mod chart;
 pub mod object;
 pub mod predictor;
 
-use crate::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
-use crate::synth::render::{self, BankKind, Performance, RenderError};
-use crate::synth::{Excitation, ExcitationError, SimdBackend};
 use clap::builder::TypedValueParser;
 use clap::{Parser, Subcommand};
+use modalforge::modes::{CullReport, CullSettings, ModeFileError, ModeSet};
+use modalforge::synth::render::{self, BankKind, Performance, RenderError};
+use modalforge::synth::{Excitation, ExcitationError, SimdBackend};
 use std::path::PathBuf;
 
 /// Longest render accepted, in seconds.
@@ -165,7 +165,7 @@ pub enum CliError {
     ModeFile(#[from] ModeFileError),
     /// Culling or mode validation.
     #[error(transparent)]
-    Modes(#[from] crate::modes::ModeError),
+    Modes(#[from] modalforge::modes::ModeError),
     /// A bad excitation value.
     #[error(transparent)]
     Excitation(#[from] ExcitationError),
@@ -184,7 +184,7 @@ pub enum CliError {
     },
     /// Training, or reading the dataset or the weights.
     #[error(transparent)]
-    Train(#[from] crate::predictor::train::TrainError),
+    Train(#[from] modalforge::predictor::train::TrainError),
     /// Creating or writing the WAV file.
     #[error("cannot write {path}: {source}")]
     Wav {
@@ -201,10 +201,10 @@ pub enum CliError {
     Object(#[from] object::ObjectError),
     /// Reading a recording.
     #[error(transparent)]
-    Recording(#[from] crate::analysis::wav::WavError),
+    Recording(#[from] modalforge::analysis::wav::WavError),
     /// Analysing a recording.
     #[error(transparent)]
-    Analysis(#[from] crate::analysis::AnalysisError),
+    Analysis(#[from] modalforge::analysis::AnalysisError),
 }
 
 fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
@@ -216,7 +216,7 @@ fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
             "--threads 0: use at least one thread".into(),
         ));
     }
-    let summary = crate::predictor::dataset::generate(
+    let summary = modalforge::predictor::dataset::generate(
         &args.out,
         args.count,
         args.held_out,
@@ -263,7 +263,7 @@ pub struct RenderSummary {
 /// Runs the CLI; returns the text to print on success.
 pub fn run(cli: Cli) -> Result<String, CliError> {
     match cli.command {
-        Command::DemoModes => Ok(crate::demo::steel_bar().to_json()),
+        Command::DemoModes => Ok(modalforge::demo::steel_bar().to_json()),
         Command::Materials => Ok(materials_table()),
         Command::Chart(args) => chart::chart_command(&args),
         Command::Dataset(args) => dataset_command(&args),
@@ -296,7 +296,7 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
                             args.object.shape.as_deref().unwrap_or(&format!(
                                 "{} ({} m)",
                                 object::DEFAULT_SHAPE,
-                                crate::demo::BAR_LENGTH_M
+                                modalforge::demo::BAR_LENGTH_M
                             ))
                         )
                     }
@@ -322,7 +322,7 @@ const SCRAPE_CUTOFF_HZ: f64 = 4000.0;
 pub fn render_command(args: &RenderArgs) -> Result<RenderSummary, CliError> {
     let fs = args.rate as f64;
     let excitation = Excitation::mallet(args.hardness)?;
-    crate::synth::oscillator::check_velocity(args.velocity)?;
+    modalforge::synth::oscillator::check_velocity(args.velocity)?;
     let modes = render_modes(args)?;
     let (playable, report) = modes.playable(fs, &CullSettings::default())?;
     let performance = match args.scrape {
@@ -397,7 +397,7 @@ fn render_modes(args: &RenderArgs) -> Result<ModeSet, CliError> {
     let mut object_args = args.object.clone();
     if object_args.shape.is_none() && object_args.size.is_none() && object_args.voxel_size.is_none()
     {
-        object_args.size = Some(crate::demo::BAR_LENGTH_M);
+        object_args.size = Some(modalforge::demo::BAR_LENGTH_M);
     }
     let object = object::Object::from_args(&object_args, Some(args.fmax))?;
     if object.neural {
@@ -572,8 +572,8 @@ fn neural_text(report: &object::ModesReport) -> String {
 
 fn materials_table() -> String {
     let mut out = String::from("name            E (Pa)    rho (kg/m3)  nu     damping models\n");
-    for name in crate::material::preset_names() {
-        if let Ok(m) = crate::material::Material::preset(name) {
+    for name in modalforge::material::preset_names() {
+        if let Ok(m) = modalforge::material::Material::preset(name) {
             let models: Vec<&str> = m.damping_models.iter().map(|(n, _)| n.as_str()).collect();
             out.push_str(&format!(
                 "{:<15} {:<9.3e} {:<12} {:<6} {}\n",

@@ -181,3 +181,30 @@ impl FemModel {
         self.lattice.map(|l| (l - 1) / p)
     }
 }
+
+/// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).
+pub fn auto_resolution(
+    material: &crate::material::Material,
+    element: ElementKind,
+    size_m: f64,
+    thinnest_fraction: f64,
+    fmax_hz: f64,
+) -> usize {
+    // Shortest wavelength at fmax: shear waves, or bending waves in the thinnest wall.
+    let omega = std::f64::consts::TAU * fmax_hz;
+    let shear = material.shear_wave_speed_m_s() / fmax_hz;
+    let t = (thinnest_fraction * size_m).max(1e-6);
+    let nu = material.poisson_ratio;
+    let d_over_rho_t =
+        material.youngs_modulus_pa * t * t / (12.0 * (1.0 - nu * nu) * material.density_kg_m3);
+    let bending = std::f64::consts::TAU * d_over_rho_t.powf(0.25) / omega.sqrt();
+    let per_wavelength = match element {
+        ElementKind::Hex27 => 3.0,
+        _ => 6.0,
+    };
+    let h = shear.min(bending) / per_wavelength;
+    // At least two voxels across the thinnest feature.
+    let by_wave = (size_m / h).ceil();
+    let by_wall = (2.0 / thinnest_fraction).ceil();
+    by_wave.max(by_wall).clamp(8.0, 96.0) as usize
+}

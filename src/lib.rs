@@ -6,8 +6,9 @@
 //! Voicing a basis with a material, a size and a strike gives a [`modes::ModeSet`] (so does a
 //! mode file, the analytic [`demo`] bar, or [`analysis`] of a recording);
 //! [`modes::ModeSet::playable`] culls it for a sample rate; the banks in [`synth`] play it,
-//! struck by an [`synth::Excitation`] or driven by a force signal, offline (the [`cli`]) or in
-//! real time ([`engine`], which the plugin and the standalone app run).
+//! struck by an [`synth::Excitation`] or driven by a force signal, offline (the `modalforge`
+//! command line, `src/cli.rs` in the binary) or in real time ([`engine`], which the plugin
+//! and the standalone app run).
 //!
 //! # Example: solve a bar, strike it, render a block
 //!
@@ -63,8 +64,7 @@
 #![deny(missing_docs)]
 
 pub mod analysis;
-pub mod buffer;
-pub mod cli;
+pub(crate) mod buffer;
 pub mod demo;
 pub mod eigen;
 pub mod engine;

@@ -1,5 +1,7 @@
 //! `modalforge`: see `modalforge --help` and the README.
 
+mod cli;
+
 use clap::Parser;
 use std::process::ExitCode;
 
@@ -11,7 +13,7 @@ fn main() -> ExitCode {
     // The solvers are written for one core (the plugin solves on one worker thread); faer's
     // dense helpers would otherwise spin a thread pool for small products.
     faer::set_global_parallelism(faer::Par::Seq);
-    let cli = match modalforge::cli::Cli::try_parse() {
+    let cli = match cli::Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
         Err(e) => {
@@ -19,7 +21,7 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    match modalforge::cli::run(cli) {
+    match cli::run(cli) {
         Ok(text) => {
             println!("{text}");
             ExitCode::SUCCESS

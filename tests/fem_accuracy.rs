@@ -10,7 +10,8 @@
 //! 0.002 %. A cube and a box plate are the same continuous object at any resolution, so one
 //! reference serves every grid of them.
 
-use modalforge::cli::{run, Cli};
+mod common;
+
 use serde_json::Value;
 
 fn references() -> Value {
@@ -27,22 +28,19 @@ fn reference_hz(name: &str) -> Vec<f64> {
         .collect()
 }
 
-/// Solves through the CLI (in-process); returns the natural frequencies and the solve time.
+/// Solves through the CLI; returns the natural frequencies and the solve time.
 fn solve(args: &str) -> (Vec<f64>, f64) {
-    let argv: Vec<&str> = [
-        "modalforge",
-        "modes",
-        "--json",
-        "--material",
-        "steel",
-        "--size",
-        "0.2",
-    ]
-    .into_iter()
-    .chain(args.split_whitespace())
-    .collect();
-    let cli = <Cli as clap::Parser>::try_parse_from(argv).expect("arguments");
-    let out: Value = serde_json::from_str(&run(cli).expect("solve")).expect("json");
+    let argv: Vec<&str> = ["modes", "--json", "--material", "steel", "--size", "0.2"]
+        .into_iter()
+        .chain(args.split_whitespace())
+        .collect();
+    let run = common::modalforge(&argv);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out: Value = serde_json::from_slice(&run.stdout).expect("json");
     let hz = out["modes"]
         .as_array()
         .unwrap()
@@ -136,7 +134,6 @@ fn a_64_cubed_solid_gets_a_clear_error_from_the_direct_solver() {
     // 824k DOFs: the Cholesky factor would need 16 GB; the refusal names the size and the way
     // out (LOBPCG), without allocating it.
     let argv = [
-        "modalforge",
         "modes",
         "--shape",
         "box:64x64x64",
@@ -145,8 +142,9 @@ fn a_64_cubed_solid_gets_a_clear_error_from_the_direct_solver() {
         "--solver",
         "lanczos",
     ];
-    let cli = <Cli as clap::Parser>::try_parse_from(argv).unwrap();
-    let e = run(cli).unwrap_err().to_string();
+    let run = common::modalforge(&argv);
+    assert!(!run.status.success());
+    let e = String::from_utf8_lossy(&run.stderr);
     assert!(e.contains("GB") && e.contains("lobpcg"), "{e}");
     assert_eq!(e.lines().count(), 1, "{e}");
 }
@@ -171,7 +169,7 @@ fn auto_resolution_resolves_every_mode_below_fmax_to_2_percent() {
     let steel = modalforge::material::Material::parse("steel").unwrap();
     let grid = |fmax: f64| {
         let kind = modalforge::fem::ElementKind::Hex8Incompatible;
-        modalforge::cli::object::auto_resolution(&steel, kind, 2.0, 4.0 / 32.0, fmax)
+        modalforge::fem::auto_resolution(&steel, kind, 2.0, 4.0 / 32.0, fmax)
     };
     // A 2 m steel bar: two voxels across its wall suffice at 2 kHz (16 along), the shear
     // wavelength at 20 kHz (0.16 m, 6 voxels each) needs about 75.

@@ -1,10 +1,10 @@
-//! `modalforge analyze`: the modes of a recorded strike ([`crate::analysis`]).
+//! `modalforge analyze`: the modes of a recorded strike ([`modalforge::analysis`]).
 //!
 //! Where it sits: beside `modes`; its JSON is itself a mode file for `render --modes` (the
 //! `phase` field, which mode files do not have, is ignored there).
 
 use super::CliError;
-use crate::analysis::{self, AnalysisOptions};
+use modalforge::analysis::{self, AnalysisOptions};
 use std::path::PathBuf;
 
 /// Options of `modalforge analyze`.

@@ -1,6 +1,6 @@
 //! `modalforge chart`: the speed-versus-accuracy sweep, the start of the product's chart.
 //!
-//! Where it sits: a CLI command over [`crate::fem`] and [`crate::eigen`]. It solves benchmark
+//! Where it sits: a CLI command over [`modalforge::fem`] and [`modalforge::eigen`]. It solves benchmark
 //! shapes (a solid sphere, a hemispherical bowl with a wall of 1/16 of its diameter, a plate of
 //! thickness 1/16 of its side; steel, 0.2 m) over voxel resolutions, elements and solvers
 //! (residual 1e-6, LOBPCG's floor), and writes every run to `chart.csv` and a log-log plot of frequency
@@ -16,10 +16,10 @@
 //! resolutions keep their wall a whole number of voxels, so each is the same physical object.
 
 use super::CliError;
-use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
-use crate::fem::{ElementKind, FemModel};
-use crate::material::Material;
-use crate::shape::primitives::Primitive;
+use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
+use modalforge::fem::{ElementKind, FemModel};
+use modalforge::material::Material;
+use modalforge::shape::primitives::Primitive;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -1,14 +1,14 @@
 //! The object options shared by `modalforge modes` and `modalforge render`: shape, material,
 //! size and resolution, element, solver, strike; and the `modes` report.
 
-use crate::eigen::{EigenOptions, ModeCount, SolverKind};
-use crate::fem::ElementKind;
-use crate::material::{DampedMode, DampingLaw, Material, MaterialError};
-use crate::modal::{Hit, ModalError, ModeBasis};
-use crate::shape::mesh::{self, MeshError};
-use crate::shape::spec::{ShapeSpec, SpecError};
-use crate::shape::vox::{self, VoxError};
-use crate::shape::{ops, VoxelGrid};
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::fem::ElementKind;
+use modalforge::material::{DampedMode, DampingLaw, Material, MaterialError};
+use modalforge::modal::{Hit, ModalError, ModeBasis};
+use modalforge::shape::mesh::{self, MeshError};
+use modalforge::shape::spec::{ShapeSpec, SpecError};
+use modalforge::shape::vox::{self, VoxError};
+use modalforge::shape::{ops, VoxelGrid};
 use serde::Serialize;
 
 /// The shape without `--shape`: the demo bar's (`render` also gives it the demo bar's length).
@@ -71,7 +71,7 @@ pub struct ObjectArgs {
     #[arg(long, value_name = "FILE.bpk")]
     pub weights: Option<std::path::PathBuf>,
     /// Residual tolerance of the eigensolver (NeuralSound eq. 6); LOBPCG never stops above 1e-6.
-    #[arg(long, value_name = "TOL", default_value_t = crate::eigen::DEFAULT_TOLERANCE)]
+    #[arg(long, value_name = "TOL", default_value_t = modalforge::eigen::DEFAULT_TOLERANCE)]
     pub tolerance: f64,
     /// Strike point X,Y,Z in metres from the object's minimum corner (snapped to the nearest
     /// surface) [default: the top face, off-centre].
@@ -124,7 +124,11 @@ impl clap::ValueEnum for SolverChoice {
 
 impl std::fmt::Display for SolverChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        crate::cli_name(self, f)
+        use clap::ValueEnum;
+        match self.to_possible_value() {
+            Some(v) => f.pad(v.get_name()),
+            None => f.pad("?"),
+        }
     }
 }
 
@@ -151,7 +155,7 @@ pub enum ObjectError {
     Option(String),
     /// The neural predictor cannot answer.
     #[error(transparent)]
-    Predictor(#[from] crate::predictor::PredictorError),
+    Predictor(#[from] modalforge::predictor::PredictorError),
 }
 
 /// A shape ready to solve, with its physical scale.
@@ -190,33 +194,6 @@ pub fn vec3(name: &str, v: &[f64]) -> Result<[f64; 3], ObjectError> {
             )))
         }
     }
-}
-
-/// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).
-pub fn auto_resolution(
-    material: &Material,
-    element: ElementKind,
-    size_m: f64,
-    thinnest_fraction: f64,
-    fmax_hz: f64,
-) -> usize {
-    // Shortest wavelength at fmax: shear waves, or bending waves in the thinnest wall.
-    let omega = std::f64::consts::TAU * fmax_hz;
-    let shear = material.shear_wave_speed_m_s() / fmax_hz;
-    let t = (thinnest_fraction * size_m).max(1e-6);
-    let nu = material.poisson_ratio;
-    let d_over_rho_t =
-        material.youngs_modulus_pa * t * t / (12.0 * (1.0 - nu * nu) * material.density_kg_m3);
-    let bending = std::f64::consts::TAU * d_over_rho_t.powf(0.25) / omega.sqrt();
-    let per_wavelength = match element {
-        ElementKind::Hex27 => 3.0,
-        _ => 6.0,
-    };
-    let h = shear.min(bending) / per_wavelength;
-    // At least two voxels across the thinnest feature.
-    let by_wave = (size_m / h).ceil();
-    let by_wall = (2.0 / thinnest_fraction).ceil();
-    by_wave.max(by_wall).clamp(8.0, 96.0) as usize
 }
 
 /// `--material`, with `--damping`'s law when given.
@@ -261,17 +238,17 @@ impl Resolution<'_> {
                 Ok(Some(self.auto(thinnest / longest, f)))
             }
             Some(n) => match n.parse::<usize>() {
-                Ok(r) if (1..=crate::shape::MAX_GRID_DIM).contains(&r) => Ok(Some(r)),
+                Ok(r) if (1..=modalforge::shape::MAX_GRID_DIM).contains(&r) => Ok(Some(r)),
                 _ => Err(ObjectError::Option(format!(
                     "--resolution {n} must be auto or a whole number from 1 to {}",
-                    crate::shape::MAX_GRID_DIM
+                    modalforge::shape::MAX_GRID_DIM
                 ))),
             },
         }
     }
 
     fn auto(&self, thinnest_fraction: f64, fmax_hz: f64) -> usize {
-        auto_resolution(
+        modalforge::fem::auto_resolution(
             self.material,
             self.element,
             self.size_m,
@@ -371,16 +348,18 @@ impl Object {
     pub fn predict(
         &self,
         args: &ObjectArgs,
-    ) -> Result<(crate::predictor::object::PredictedObject, Hit), ObjectError> {
+    ) -> Result<(modalforge::predictor::object::PredictedObject, Hit), ObjectError> {
         let predictor = match &args.weights {
-            Some(path) => crate::predictor::Predictor::from_file(path),
-            None => crate::predictor::Predictor::shipped(),
+            Some(path) => modalforge::predictor::Predictor::from_file(path),
+            None => modalforge::predictor::Predictor::shipped(),
         }?;
-        if self.grid.dims().into_iter().max().unwrap_or(0) != crate::predictor::bands::INPUT_SIDE {
+        if self.grid.dims().into_iter().max().unwrap_or(0)
+            != modalforge::predictor::bands::INPUT_SIDE
+        {
             eprintln!(
                 "note: the shape ({:?} voxels) is resampled to fill the predictor's {}^3 box",
                 self.grid.dims(),
-                crate::predictor::bands::INPUT_SIDE
+                modalforge::predictor::bands::INPUT_SIDE
             );
         }
         let predicted = predictor.predict(&self.grid)?;
@@ -524,13 +503,13 @@ pub struct BandReport {
 /// per predicted band; no residuals, no DOFs), the `count` lowest or those below `fmax_hz`.
 pub fn neural_report(
     object: &Object,
-    predicted: &crate::predictor::object::PredictedObject,
+    predicted: &modalforge::predictor::object::PredictedObject,
     hit: &Hit,
     count: Option<usize>,
     fmax_hz: Option<f64>,
     with_bands: bool,
 ) -> ModesReport {
-    use crate::predictor::bands::{self, BANDS, DIRECTIONS};
+    use modalforge::predictor::bands::{self, BANDS, DIRECTIONS};
     let h = object.grid.voxel_size_m();
     let mut voiced = predicted.voice(&object.material, h, hit);
     // The bands this strike excites (a masked-off band has no force here).
@@ -586,7 +565,7 @@ pub fn neural_report(
     }
 }
 
-fn mode_report(m: &crate::modal::VoicedMode) -> ModeReport {
+fn mode_report(m: &modalforge::modal::VoicedMode) -> ModeReport {
     match m.damped {
         DampedMode::Oscillating {
             freq_hz,

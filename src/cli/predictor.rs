@@ -1,12 +1,12 @@
 //! `modalforge train` and `modalforge predictor eval`: fitting the neural predictor and scoring
 //! it on the held-out split.
 //!
-//! Where it sits: between [`crate::predictor::dataset`]'s records on disk and
-//! [`crate::predictor::train`] / [`crate::predictor::metrics`].
+//! Where it sits: between [`modalforge::predictor::dataset`]'s records on disk and
+//! [`modalforge::predictor::train`] / [`modalforge::predictor::metrics`].
 
 use super::CliError;
-use crate::predictor::dataset::Record;
-use crate::predictor::{baseline, metrics, train};
+use modalforge::predictor::dataset::Record;
+use modalforge::predictor::{baseline, metrics, train};
 use std::path::PathBuf;
 
 /// Options of `modalforge train`.

@@ -425,7 +425,8 @@ impl OscillatorBank {
     }
 }
 
-pub(crate) fn check_velocity(velocity: f64) -> Result<(), ExcitationError> {
+/// Checks a strike velocity (a force multiplier, finite, `0..=MAX_VELOCITY`), as `strike` does.
+pub fn check_velocity(velocity: f64) -> Result<(), ExcitationError> {
     if velocity.is_finite() && (0.0..=MAX_VELOCITY).contains(&velocity) {
         Ok(())
     } else {
