@@ -17,6 +17,7 @@ pub mod sculptor;
 pub mod spectrum_view;
 pub mod view3d;
 
+use crate::error::PluginError;
 use crate::materials::{MaterialChoice, MaterialTable};
 use crate::params::ModalForgeParams;
 use crate::presets::Preset;
@@ -172,7 +173,7 @@ impl EditorApp {
                     .unwrap_or_else(|e| e.into_inner()) = s.clone();
                 self.synced = s;
             }
-            Err(e) => self.message = Some((e, true)),
+            Err(e) => self.message = Some((e.to_string(), true)),
         }
     }
 
@@ -243,14 +244,14 @@ impl EditorApp {
     }
 
     /// Runs a sculpting operation that may fail, then publishes or reports.
-    fn edit(&mut self, op: impl FnOnce(&mut Sculptor) -> Result<(), String>) {
+    fn edit(&mut self, op: impl FnOnce(&mut Sculptor) -> Result<(), PluginError>) {
         match op(&mut self.sculptor) {
             Ok(()) => {
                 self.publish();
                 self.framed = false;
                 self.message = None;
             }
-            Err(e) => self.message = Some((e, true)),
+            Err(e) => self.message = Some((e.to_string(), true)),
         }
     }
 
@@ -341,15 +342,15 @@ impl EditorApp {
             .sculptor
             .sculpt()
             .and_then(|s| s.to_grid())
-            .and_then(|g| modalforge::shape::vox::write_vox(&g, &path).map_err(|e| e.to_string()));
+            .and_then(|g| Ok(modalforge::shape::vox::write_vox(&g, &path)?));
         self.message = Some(match result {
             Ok(()) => (format!("saved {}", path.display()), false),
-            Err(e) => (e, true),
+            Err(e) => (e.to_string(), true),
         });
     }
 
     /// The preset the window's current settings describe.
-    pub fn current_preset(&self, name: &str) -> Result<Preset, String> {
+    pub fn current_preset(&self, name: &str) -> Result<Preset, PluginError> {
         let sculpt = self.sculptor.sculpt()?;
         let mut p = Preset::with_object(name, &sculpt);
         let m = self.params.material.value();
@@ -378,19 +379,27 @@ impl EditorApp {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "preset".into());
-        let result = self
-            .current_preset(&name)
-            .and_then(|p| std::fs::write(&path, p.to_toml()).map_err(|e| e.to_string()));
+        let result = self.current_preset(&name).and_then(|p| {
+            std::fs::write(&path, p.to_toml()).map_err(|source| PluginError::Io {
+                action: "write",
+                path: path.clone(),
+                source,
+            })
+        });
         self.message = Some(match result {
             Ok(()) => (format!("saved {}", path.display()), false),
+            Err(e @ PluginError::Io { .. }) => (e.to_string(), true),
             Err(e) => (format!("cannot save {}: {e}", path.display()), true),
         });
     }
 
-    fn read_preset(&self) -> Result<Preset, String> {
+    fn read_preset(&self) -> Result<Preset, PluginError> {
         let path = Path::new(self.path.trim());
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|source| PluginError::Io {
+            action: "read",
+            path: path.into(),
+            source,
+        })?;
         Preset::from_toml(&text, &path.display().to_string())
     }
 
@@ -400,7 +409,7 @@ impl EditorApp {
         let sculpt = match preset.sculpt().and_then(|s| s.to_grid()) {
             Ok(g) => g,
             Err(e) => {
-                self.message = Some((e, true));
+                self.message = Some((e.to_string(), true));
                 return;
             }
         };

@@ -13,6 +13,7 @@
 #![deny(missing_docs)]
 
 pub mod editor;
+pub mod error;
 pub mod keymap;
 pub mod materials;
 pub mod params;

@@ -18,6 +18,7 @@
 //! hit = [0.37, 0.41, 1.0]
 //! ```
 
+use crate::error::PluginError;
 use crate::materials::MaterialChoice;
 use crate::sculpt::Sculpt;
 use modalforge::engine::Voicing;
@@ -133,14 +134,14 @@ impl Preset {
     }
 
     /// Parses and checks a preset file; `origin` names it in errors.
-    pub fn from_toml(text: &str, origin: &str) -> Result<Preset, String> {
-        let p: Preset = toml::from_str(text).map_err(|e| {
-            format!(
-                "{origin}: not a preset ({}): see presets/objects/ for the format",
-                e.message()
-            )
-        })?;
-        p.check().map_err(|e| format!("{origin}: {e}"))?;
+    pub fn from_toml(text: &str, origin: &str) -> Result<Preset, PluginError> {
+        let in_preset = |e: PluginError| PluginError::InPreset {
+            origin: origin.into(),
+            source: Box::new(e),
+        };
+        let p: Preset = toml::from_str(text)
+            .map_err(|e| in_preset(PluginError::NotAPreset(e.message().into())))?;
+        p.check().map_err(in_preset)?;
         Ok(p)
     }
 
@@ -157,12 +158,12 @@ impl Preset {
     }
 
     /// The object.
-    pub fn sculpt(&self) -> Result<Sculpt, String> {
+    pub fn sculpt(&self) -> Result<Sculpt, PluginError> {
         match (&self.shape, &self.object) {
             (Some(spec), None) => Sculpt::from_spec(spec),
             (None, Some(o)) => {
-                let bits = decode_hex(&o.voxels).ok_or("object.voxels is not hex")?;
-                let fill = decode_hex(&o.fill).ok_or("object.fill is not hex")?;
+                let bits = decode_hex(&o.voxels).ok_or(PluginError::NotHex("voxels"))?;
+                let fill = decode_hex(&o.fill).ok_or(PluginError::NotHex("fill"))?;
                 let s = Sculpt {
                     dims: o.dims,
                     bits,
@@ -171,7 +172,7 @@ impl Preset {
                 s.to_grid()?;
                 Ok(s)
             }
-            _ => Err("give exactly one of `shape` or `object`".into()),
+            _ => Err(PluginError::ShapeOrObject),
         }
     }
 
@@ -197,47 +198,53 @@ impl Preset {
     }
 
     /// The voicing the preset sets (material damping, normal strike, 0 dB).
-    pub fn voicing(&self) -> Result<Voicing, String> {
+    pub fn voicing(&self) -> Result<Voicing, PluginError> {
         let material = if self.material == "custom" {
             Material::new(
                 "custom",
                 self.youngs_gpa.unwrap_or(70.0) as f64 * 1e9,
                 self.density_kg_m3.unwrap_or(2500.0) as f64,
                 self.poisson.unwrap_or(0.25) as f64,
-                Material::preset("glass")
-                    .map_err(|e| e.to_string())?
-                    .damping,
-            )
-            .map_err(|e| e.to_string())?
+                Material::preset("glass")?.damping,
+            )?
         } else {
-            Material::preset(&self.material).map_err(|e| e.to_string())?
+            Material::preset(&self.material)?
         };
-        let mut v = Voicing::from_material(&material, self.size_m as f64)
-            .ok_or("the material's damping model cannot be voiced live")?;
+        let mut v =
+            Voicing::from_material(&material, self.size_m as f64).ok_or(PluginError::NotLive)?;
         v.hardness_s = self.hardness_ms as f64 * 1e-3;
         v.hit.position = self.hit.map(|c| c as f64);
         Ok(v)
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), PluginError> {
         if self.material_choice().is_none() {
-            return Err(format!(
-                "unknown material '{}': use one of {}",
-                self.material,
-                MaterialChoice::ids().unwrap_or(&[]).join(", ")
-            ));
+            return Err(PluginError::UnknownMaterial {
+                name: self.material.clone(),
+                known: MaterialChoice::ids().unwrap_or(&[]).join(", "),
+            });
         }
+        let out_of_range = |field, value: String, range| PluginError::OutOfRange {
+            field,
+            value,
+            range,
+        };
         if !(0.01..=4.0).contains(&self.size_m) {
-            return Err(format!("size_m {} is outside 0.01..4 m", self.size_m));
+            return Err(out_of_range("size_m", self.size_m.to_string(), "0.01..4 m"));
         }
         if !(0.0..=20.0).contains(&self.hardness_ms) {
-            return Err(format!(
-                "hardness_ms {} is outside 0..20 ms",
-                self.hardness_ms
+            return Err(out_of_range(
+                "hardness_ms",
+                self.hardness_ms.to_string(),
+                "0..20 ms",
             ));
         }
         if !self.hit.iter().all(|c| (0.0..=1.0).contains(c)) {
-            return Err(format!("hit {:?} must be fractions in 0..1", self.hit));
+            return Err(out_of_range(
+                "hit",
+                format!("{:?}", self.hit),
+                "0..1 (fractions of the extent)",
+            ));
         }
         self.sculpt().map(|_| ())
     }

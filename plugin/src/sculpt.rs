@@ -2,6 +2,7 @@
 //! packed occupancy bits and the partial voxels' sub-cell fill, serialised with the DAW
 //! project. States saved before partial voxels existed have no `fill` and load as binary.
 
+use crate::error::PluginError;
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::VoxelGrid;
 use serde::{Deserialize, Serialize};
@@ -37,36 +38,33 @@ impl Sculpt {
     }
 
     /// The grid in reference units (voxel edge 1), or why it cannot be one.
-    pub fn to_grid(&self) -> Result<VoxelGrid, String> {
+    pub fn to_grid(&self) -> Result<VoxelGrid, PluginError> {
         let n = self.dims.iter().product::<usize>();
         if self.dims.iter().any(|&d| d == 0 || d > MAX_SIDE) || self.bits.len() != n.div_ceil(8) {
-            return Err(format!(
-                "stored object {:?} with {} bytes is malformed (sides 1..={MAX_SIDE})",
-                self.dims,
-                self.bits.len()
-            ));
+            return Err(PluginError::Malformed {
+                dims: self.dims,
+                bytes: self.bits.len(),
+            });
         }
         let occupancy = (0..n)
             .map(|i| self.bits[i / 8] >> (i % 8) & 1 == 1)
             .collect();
-        let mut grid =
-            VoxelGrid::from_occupancy(self.dims, 1.0, occupancy).map_err(|e| e.to_string())?;
-        grid.set_partial_records(&self.fill)
-            .map_err(|e| format!("stored object's {e}"))?;
+        let mut grid = VoxelGrid::from_occupancy(self.dims, 1.0, occupancy)?;
+        grid.set_partial_records(&self.fill)?;
         Ok(grid)
     }
 
     /// A built-in shape spec (see the CLI's `--shape` syntax) at scale 1.
-    pub fn from_spec(spec: &str) -> Result<Self, String> {
-        match spec.parse::<ShapeSpec>().map_err(|e| e.to_string())? {
+    pub fn from_spec(spec: &str) -> Result<Self, PluginError> {
+        match spec.parse::<ShapeSpec>()? {
             ShapeSpec::Primitive { shape, hollow } => {
-                let mut grid = shape.rasterize(1.0, 1.0).map_err(|e| e.to_string())?;
+                let mut grid = shape.rasterize(1.0, 1.0)?;
                 if let Some(w) = hollow {
                     grid = modalforge::shape::ops::hollow(&grid, w.round().max(1.0) as usize);
                 }
                 Ok(Self::from_grid(&grid))
             }
-            _ => Err(format!("'{spec}' is a file; use a built-in shape")),
+            _ => Err(PluginError::FileSpec(spec.into())),
         }
     }
 }

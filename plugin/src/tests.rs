@@ -17,7 +17,11 @@ fn the_persisted_object_round_trips_and_rejects_bad_states() {
         bits: s.bits[..s.bits.len() - 1].to_vec(),
         ..s.clone()
     };
-    assert!(short.to_grid().unwrap_err().contains("malformed"));
+    assert!(short
+        .to_grid()
+        .unwrap_err()
+        .to_string()
+        .contains("malformed"));
     let huge = Sculpt {
         dims: [64, 64, 64],
         bits: vec![0xFF; 64 * 64 * 8],
@@ -42,12 +46,13 @@ fn the_persisted_object_round_trips_and_rejects_bad_states() {
         fill: s.fill[..s.fill.len() - 1].to_vec(),
         ..s.clone()
     };
-    assert!(cut.to_grid().unwrap_err().contains("multiple"));
+    assert!(cut.to_grid().unwrap_err().to_string().contains("multiple"));
     let mut stray = s.clone();
     stray.fill[..4].copy_from_slice(&0u32.to_le_bytes());
     assert!(stray
         .to_grid()
         .unwrap_err()
+        .to_string()
         .contains("not an occupied voxel"));
 }
 

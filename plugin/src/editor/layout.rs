@@ -76,7 +76,7 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         if ui.button("Load preset").clicked() {
             match app.read_preset() {
                 Ok(p) => app.apply_preset(&p, setter),
-                Err(e) => app.message = Some((e, true)),
+                Err(e) => app.message = Some((e.to_string(), true)),
             }
         }
         if ui.button("Save preset").clicked() {

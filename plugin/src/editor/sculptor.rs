@@ -6,6 +6,7 @@
 //! edits the box; [`Sculptor::sculpt`] crops it into the [`Sculpt`] the plugin persists and the
 //! worker solves (the crop's longest side is what the Size parameter spans).
 
+use crate::error::PluginError;
 use crate::sculpt::{Sculpt, MAX_SIDE};
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::{VoxelFill, VoxelGrid};
@@ -34,7 +35,7 @@ pub struct Sculptor {
 
 impl Sculptor {
     /// Opens an object, centred in the working box.
-    pub fn new(sculpt: &Sculpt) -> Result<Self, String> {
+    pub fn new(sculpt: &Sculpt) -> Result<Self, PluginError> {
         let grid = sculpt.to_grid()?;
         let mut s = Self {
             cells: empty_box(),
@@ -74,9 +75,9 @@ impl Sculptor {
 
     /// The object as persisted and solved: the box cropped to the solid voxels (partial ones
     /// keep their fill), or an error if nothing is solid.
-    pub fn sculpt(&self) -> Result<Sculpt, String> {
+    pub fn sculpt(&self) -> Result<Sculpt, PluginError> {
         if self.cells.count() == 0 {
-            return Err("the object is empty: add voxels".into());
+            return Err(PluginError::Empty("add voxels"));
         }
         Ok(Sculpt::from_grid(&self.cells.cropped()))
     }
@@ -148,39 +149,34 @@ impl Sculptor {
 
     /// Replaces the object with a built-in primitive (the CLI's `--shape` names, e.g. `bowl`,
     /// `bell:d=24,h=24,wall=2`) scaled so its longest side is `side` voxels; one undo step.
-    pub fn load_primitive(&mut self, spec: &str, side: usize) -> Result<(), String> {
+    pub fn load_primitive(&mut self, spec: &str, side: usize) -> Result<(), PluginError> {
         let side = side.clamp(MIN_SIDE, MAX_SIDE);
-        let ShapeSpec::Primitive { shape, hollow } =
-            spec.parse::<ShapeSpec>().map_err(|e| e.to_string())?
-        else {
-            return Err(format!("'{spec}' is a file; load it with Load .vox"));
+        let ShapeSpec::Primitive { shape, hollow } = spec.parse::<ShapeSpec>()? else {
+            return Err(PluginError::FileSpec(spec.into()));
         };
         let longest = shape.extent().into_iter().fold(0.0, f64::max);
-        let mut grid = shape
-            .rasterize(side as f64 / longest, 1.0)
-            .map_err(|e| e.to_string())?;
+        let mut grid = shape.rasterize(side as f64 / longest, 1.0)?;
         if let Some(w) = hollow {
             let w = (w * side as f64 / longest).round().max(1.0) as usize;
             grid = modalforge::shape::ops::hollow(&grid, w);
         }
         if grid.count() == 0 {
-            return Err(format!(
-                "'{spec}' at {side} voxels is empty: raise the resolution"
-            ));
+            return Err(PluginError::EmptyAt {
+                spec: spec.into(),
+                side,
+            });
         }
         self.replace(&grid)
     }
 
     /// Replaces the object with `grid` (a loaded `.vox`, a preset); one undo step.
-    pub fn replace(&mut self, grid: &VoxelGrid) -> Result<(), String> {
+    pub fn replace(&mut self, grid: &VoxelGrid) -> Result<(), PluginError> {
         let grid = grid.cropped();
         if grid.count() == 0 {
-            return Err("the object is empty: nothing to load".into());
+            return Err(PluginError::Empty("nothing to load"));
         }
         if let Some(d) = grid.dims().into_iter().find(|&d| d > MAX_SIDE) {
-            return Err(format!(
-                "the object is {d} voxels long, over the editor's {MAX_SIDE}: resample it first"
-            ));
+            return Err(PluginError::TooLong(d));
         }
         let before = self.cells.clone();
         self.place(&grid, None);
@@ -189,12 +185,12 @@ impl Sculptor {
     }
 
     /// Keeps only a shell `wall` voxels thick (the inside becomes empty); one undo step.
-    pub fn hollow(&mut self, wall: usize) -> Result<(), String> {
+    pub fn hollow(&mut self, wall: usize) -> Result<(), PluginError> {
         let sculpt = self.sculpt()?;
         let grid = sculpt.to_grid()?;
         let shell = modalforge::shape::ops::hollow(&grid, wall.max(1));
         if shell.count() == grid.count() {
-            return Err(format!("the object is already at most {wall} voxels thick"));
+            return Err(PluginError::AlreadyThin(wall));
         }
         let (lo, _) = self.bounds().expect("not empty");
         let before = self.cells.clone();
@@ -205,9 +201,9 @@ impl Sculptor {
 
     /// Resamples the object so its longest side is `side` voxels (nearest voxel centre; a
     /// partial voxel's fill goes with it); one undo step.
-    pub fn resample(&mut self, side: usize) -> Result<(), String> {
+    pub fn resample(&mut self, side: usize) -> Result<(), PluginError> {
         let side = side.clamp(MIN_SIDE, MAX_SIDE);
-        let (lo, dims) = self.bounds().ok_or("the object is empty: add voxels")?;
+        let (lo, dims) = self.bounds().ok_or(PluginError::Empty("add voxels"))?;
         let longest = dims.into_iter().max().unwrap_or(1);
         if longest == side {
             return Ok(());
@@ -215,7 +211,7 @@ impl Sculptor {
         let s = side as f64 / longest as f64;
         let new_dims = dims.map(|d| ((d as f64 * s).round() as usize).max(1));
         // Each voxel takes the voxel its centre falls in.
-        let mut grid = VoxelGrid::new(new_dims, 1.0).map_err(|e| e.to_string())?;
+        let mut grid = VoxelGrid::new(new_dims, 1.0)?;
         for z in 0..new_dims[2] {
             for y in 0..new_dims[1] {
                 for x in 0..new_dims[0] {
@@ -225,7 +221,7 @@ impl Sculptor {
             }
         }
         if grid.count() == 0 {
-            return Err(format!("at {side} voxels the object vanishes: use more"));
+            return Err(PluginError::Vanishes(side));
         }
         let before = self.cells.clone();
         self.place(&grid, None);

@@ -105,7 +105,7 @@ fn primitives_hollow_and_resample() {
     s.hollow(1).unwrap();
     assert_eq!(s.count(), 488);
     // Hollowing again changes nothing and says so.
-    assert!(s.hollow(1).unwrap_err().contains("already"));
+    assert!(s.hollow(1).unwrap_err().to_string().contains("already"));
     // Resampled to 20 voxels: every voxel becomes 2x2x2 (wall 2): 20^3 - 16^3 = 3904.
     s.resample(20).unwrap();
     assert_eq!(s.count(), 3904);
@@ -251,9 +251,11 @@ fn presets_save_and_load_through_files() {
     assert_eq!(back.material, "glass");
     // A damaged file is refused with the file's name and what is wrong.
     let bad = p.to_toml().replace("glass", "unobtainium");
-    let e = Preset::from_toml(&bad, "bad.toml").unwrap_err();
+    let e = Preset::from_toml(&bad, "bad.toml").unwrap_err().to_string();
     assert!(e.contains("bad.toml") && e.contains("unobtainium"), "{e}");
-    let e = Preset::from_toml("name = 3", "x.toml").unwrap_err();
+    let e = Preset::from_toml("name = 3", "x.toml")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("x.toml"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
     // A sculpted curved object keeps its partial voxels through a preset file; a file
