@@ -78,8 +78,9 @@ pub mod shape;
 pub mod synth;
 
 /// Writes a `clap::ValueEnum`'s command-line name, honouring width and alignment: the one
-/// source of the names that `--help` lists, that reports print and that `Display` shows.
-pub(crate) fn cli_name<T: clap::ValueEnum>(
+/// source of the names that `--help` lists, that reports print and that `Display` shows
+/// (the library's enums and the binary's `--solver` choice implement `Display` with it).
+pub fn cli_name<T: clap::ValueEnum>(
     value: &T,
     f: &mut std::fmt::Formatter<'_>,
 ) -> std::fmt::Result {

@@ -124,11 +124,7 @@ impl clap::ValueEnum for SolverChoice {
 
 impl std::fmt::Display for SolverChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        use clap::ValueEnum;
-        match self.to_possible_value() {
-            Some(v) => f.pad(v.get_name()),
-            None => f.pad("?"),
-        }
+        modalforge::cli_name(self, f)
     }
 }
 
