@@ -218,9 +218,9 @@ impl EditorApp {
     pub fn hit_point(&self) -> Option<view3d::V3> {
         let (lo, dims) = self.sculptor.bounds()?;
         let f = [
-            self.params.hit_x.value(),
-            self.params.hit_y.value(),
-            self.params.hit_z.value(),
+            self.params.strike.hit_x.value(),
+            self.params.strike.hit_y.value(),
+            self.params.strike.hit_z.value(),
         ];
         Some([0, 1, 2].map(|a| lo[a] as f32 + f[a] * dims[a] as f32))
     }
@@ -353,22 +353,22 @@ impl EditorApp {
     pub fn current_preset(&self, name: &str) -> Result<Preset, PluginError> {
         let sculpt = self.sculptor.sculpt()?;
         let mut p = Preset::with_object(name, &sculpt);
-        let m = self.params.material.value();
+        let m = self.params.material.preset.value();
         p.material = MaterialChoice::ids()
             .and_then(|ids| ids.get(m.to_index()))
             .unwrap_or(&"glass")
             .to_string();
         if m == MaterialChoice::Custom {
-            p.youngs_gpa = Some(self.params.youngs_gpa.value());
-            p.density_kg_m3 = Some(self.params.density.value());
-            p.poisson = Some(self.params.poisson.value());
+            p.youngs_gpa = Some(self.params.material.youngs_gpa.value());
+            p.density_kg_m3 = Some(self.params.material.density.value());
+            p.poisson = Some(self.params.material.poisson.value());
         }
-        p.size_m = self.params.size_m.value();
-        p.hardness_ms = self.params.hardness_ms.value();
+        p.size_m = self.params.material.size_m.value();
+        p.hardness_ms = self.params.strike.hardness_ms.value();
         p.hit = [
-            self.params.hit_x.value(),
-            self.params.hit_y.value(),
-            self.params.hit_z.value(),
+            self.params.strike.hit_x.value(),
+            self.params.strike.hit_y.value(),
+            self.params.strike.hit_z.value(),
         ];
         Ok(p)
     }
@@ -421,25 +421,25 @@ impl EditorApp {
             setter.end_set_parameter(param);
         };
         if let Some(m) = preset.material_choice() {
-            setter.begin_set_parameter(&p.material);
-            setter.set_parameter(&p.material, m);
-            setter.end_set_parameter(&p.material);
+            setter.begin_set_parameter(&p.material.preset);
+            setter.set_parameter(&p.material.preset, m);
+            setter.end_set_parameter(&p.material.preset);
         }
         if let (Some(e), Some(rho), Some(nu)) =
             (preset.youngs_gpa, preset.density_kg_m3, preset.poisson)
         {
-            set_f(&p.youngs_gpa, e);
-            set_f(&p.density, rho);
-            set_f(&p.poisson, nu);
+            set_f(&p.material.youngs_gpa, e);
+            set_f(&p.material.density, rho);
+            set_f(&p.material.poisson, nu);
         }
-        setter.begin_set_parameter(&p.damping);
-        setter.set_parameter(&p.damping, crate::params::DampingChoice::Material);
-        setter.end_set_parameter(&p.damping);
-        set_f(&p.size_m, preset.size_m);
-        set_f(&p.hardness_ms, preset.hardness_ms);
-        set_f(&p.hit_x, preset.hit[0]);
-        set_f(&p.hit_y, preset.hit[1]);
-        set_f(&p.hit_z, preset.hit[2]);
+        setter.begin_set_parameter(&p.damping.law);
+        setter.set_parameter(&p.damping.law, crate::params::DampingChoice::Material);
+        setter.end_set_parameter(&p.damping.law);
+        set_f(&p.material.size_m, preset.size_m);
+        set_f(&p.strike.hardness_ms, preset.hardness_ms);
+        set_f(&p.strike.hit_x, preset.hit[0]);
+        set_f(&p.strike.hit_y, preset.hit[1]);
+        set_f(&p.strike.hit_z, preset.hit[2]);
         self.message = Some((format!("{}: {}", preset.name, preset.description), false));
     }
 }

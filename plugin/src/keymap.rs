@@ -79,7 +79,7 @@ impl KeyMap {
                 let Key::Number(k) = key else { return };
                 Some(Self::strike(k, velocity as f64, params, engine))
             }
-            NoteEvent::NoteOff { key, .. } if params.note_off_mute.value() => match key {
+            NoteEvent::NoteOff { key, .. } if params.play.note_off_mute.value() => match key {
                 Key::Number(k) => Some(Event::Mute { key: k }),
                 Key::Wildcard => Some(Event::AllOff),
             },
@@ -105,8 +105,8 @@ impl KeyMap {
         let v = velocity.clamp(0.0, 1.0);
         // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1).
         let base = engine.voicing().hardness_s;
-        let hardness = base * (1.0 + params.velocity_hardness.value() as f64 * (1.0 - v));
-        let (pitch, hit) = match params.mapping.value() {
+        let hardness = base * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v));
+        let (pitch, hit) = match params.play.mapping.value() {
             // Resolved by the engine with the object and voicing in use at the strike.
             KeyMapping::Pitch => (Pitch::Fundamental(util::midi_key_to_freq(key) as f64), None),
             KeyMapping::Positions => (
@@ -118,7 +118,7 @@ impl KeyMap {
             ),
         };
         Event::Strike {
-            key: match params.mapping.value() {
+            key: match params.play.mapping.value() {
                 KeyMapping::Pitch => key,
                 // One bank for all positions: strikes superpose on the object at its own size.
                 KeyMapping::Positions => 0,

@@ -105,18 +105,18 @@ pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Optio
         .ok()?;
     Some(ObjectRequest {
         grid,
-        element: match params.element.value() {
+        element: match params.solver.element.value() {
             ElementChoice::Hex8i => ElementKind::Hex8Incompatible,
             ElementChoice::Hex27 => ElementKind::Hex27,
         },
         poisson_ratio: params.poisson_ratio(table),
-        solver: match params.solver.value() {
+        solver: match params.solver.kind.value() {
             SolverChoice::Auto => SolverKind::Auto,
             SolverChoice::Lanczos => SolverKind::Lanczos,
             SolverChoice::Lobpcg => SolverKind::Lobpcg,
         },
         options: EigenOptions {
-            count: ModeCount::First(params.modes.value().max(1) as usize),
+            count: ModeCount::First(params.solver.modes.value().max(1) as usize),
             ..EigenOptions::default()
         },
     })
@@ -132,7 +132,7 @@ pub fn solve_source(
     let mut last: Option<(u64, ElementKind, u64, SolverKind, usize, Answers)> = None;
     Box::new(move || {
         let r = object_request(&params, &table)?;
-        let wanted = match params.answers.value() {
+        let wanted = match params.solver.answers.value() {
             AnswerChoice::Auto => Answers::Auto,
             AnswerChoice::FemOnly => Answers::FemOnly,
             AnswerChoice::PredictorOnly => Answers::PredictorOnly,
@@ -282,7 +282,7 @@ impl Plugin for ModalForge {
         let voicing = self.params.voicing(&self.table, bend, wheel);
         // A voicing the engine refuses (cannot happen from these ranges) keeps the old one.
         let _ = engine.set_voicing(voicing);
-        engine.set_mode_budget(self.params.mode_budget.value().max(1) as usize);
+        engine.set_mode_budget(self.params.play.mode_budget.value().max(1) as usize);
         let n = n.min(self.mono.len());
         let mono = &mut self.mono[..n];
         engine.process(mono, &self.events);

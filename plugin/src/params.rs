@@ -116,16 +116,37 @@ fn skewed(min: f32, max: f32) -> FloatRange {
     }
 }
 
-/// Every parameter, plus the persisted object.
+/// Every parameter, plus the persisted object. Hosts see the parameters in five groups
+/// (nice-plug's `#[nested(group = ...)]`, which keeps each parameter's id unchanged, so
+/// projects saved before the groups existed still load).
 #[derive(Params)]
 pub struct ModalForgeParams {
     /// The sculpted object (persisted with the project).
     #[persist = "object"]
     pub object: Arc<RwLock<crate::sculpt::Sculpt>>,
+    /// Material constants and size.
+    #[nested(group = "Material")]
+    pub material: MaterialGroup,
+    /// Damping law.
+    #[nested(group = "Damping")]
+    pub damping: DampingGroup,
+    /// Mallet, hit point and force direction.
+    #[nested(group = "Strike")]
+    pub strike: StrikeGroup,
+    /// Output, polyphony and key mapping.
+    #[nested(group = "Play")]
+    pub play: PlayGroup,
+    /// How shape edits are solved (every change re-solves).
+    #[nested(group = "Solver")]
+    pub solver: SolverGroup,
+}
 
+/// The "Material" group.
+#[derive(Params)]
+pub struct MaterialGroup {
     /// Material preset; "Custom" uses the E, rho and nu knobs.
     #[id = "mat"]
-    pub material: EnumParam<MaterialChoice>,
+    pub preset: EnumParam<MaterialChoice>,
     /// Young's modulus for the custom material, GPa.
     #[id = "e"]
     pub youngs_gpa: FloatParam,
@@ -138,10 +159,14 @@ pub struct ModalForgeParams {
     /// Object size: its longest side, m.
     #[id = "size"]
     pub size_m: FloatParam,
+}
 
+/// The "Damping" group.
+#[derive(Params)]
+pub struct DampingGroup {
     /// Damping law.
     #[id = "dmod"]
-    pub damping: EnumParam<DampingChoice>,
+    pub law: EnumParam<DampingChoice>,
     /// Rayleigh mass term, 1/s.
     #[id = "a1"]
     pub alpha1: FloatParam,
@@ -154,7 +179,11 @@ pub struct ModalForgeParams {
     /// Power-law exponent on omega^2.
     #[id = "mu2"]
     pub mu2: FloatParam,
+}
 
+/// The "Strike" group.
+#[derive(Params)]
+pub struct StrikeGroup {
     /// Mallet contact time, ms (0 = an ideal impulse; longer is softer).
     #[id = "hard"]
     pub hardness_ms: FloatParam,
@@ -179,7 +208,18 @@ pub struct ModalForgeParams {
     /// Force direction elevation, degrees (-90 = straight down).
     #[id = "fel"]
     pub force_elevation: FloatParam,
+}
 
+impl StrikeGroup {
+    /// The three hit-point parameters, x, y, z.
+    pub fn hit(&self) -> [&FloatParam; 3] {
+        [&self.hit_x, &self.hit_y, &self.hit_z]
+    }
+}
+
+/// The "Play" group.
+#[derive(Params)]
+pub struct PlayGroup {
     /// Output gain, dB.
     #[id = "gain"]
     pub gain_db: FloatParam,
@@ -195,18 +235,22 @@ pub struct ModalForgeParams {
     /// Extra decay of a muted note, 1/s.
     #[id = "mdec"]
     pub mute_decay: FloatParam,
+}
 
-    /// Eigensolver (a change re-solves).
+/// The "Solver" group: every change re-solves.
+#[derive(Params)]
+pub struct SolverGroup {
+    /// Eigensolver.
     #[id = "solver"]
-    pub solver: EnumParam<SolverChoice>,
-    /// Which answers an edit gets (a change re-solves). Without loadable predictor weights,
-    /// FEM answers whatever this says.
+    pub kind: EnumParam<SolverChoice>,
+    /// Which answers an edit gets. Without loadable predictor weights, FEM answers whatever
+    /// this says.
     #[id = "answer"]
     pub answers: EnumParam<AnswerChoice>,
-    /// Element (a change re-solves).
+    /// Element.
     #[id = "elem"]
     pub element: EnumParam<ElementChoice>,
-    /// Modes to compute (a change re-solves).
+    /// Modes to compute.
     #[id = "modes"]
     pub modes: IntParam,
 }
@@ -215,7 +259,19 @@ impl Default for ModalForgeParams {
     fn default() -> Self {
         Self {
             object: Arc::new(RwLock::new(crate::sculpt::Sculpt::default())),
-            material: EnumParam::new("Material", MaterialChoice::Glass),
+            material: MaterialGroup::default(),
+            damping: DampingGroup::default(),
+            strike: StrikeGroup::default(),
+            play: PlayGroup::default(),
+            solver: SolverGroup::default(),
+        }
+    }
+}
+
+impl Default for MaterialGroup {
+    fn default() -> Self {
+        Self {
+            preset: EnumParam::new("Material", MaterialChoice::Glass),
             youngs_gpa: float("E", 70.0, skewed(0.01, 1000.0), " GPa", 3),
             density: float("Density", 2500.0, skewed(50.0, 25000.0), " kg/m3", 1),
             poisson: float(
@@ -229,11 +285,25 @@ impl Default for ModalForgeParams {
                 3,
             ),
             size_m: float("Size", 0.2, skewed(0.01, 4.0), " m", 4),
-            damping: EnumParam::new("Damping", DampingChoice::Material),
+        }
+    }
+}
+
+impl Default for DampingGroup {
+    fn default() -> Self {
+        Self {
+            law: EnumParam::new("Damping", DampingChoice::Material),
             alpha1: float("Alpha1", 5.0, skewed(0.0, 2000.0), " /s", 3),
             alpha2_us: float("Alpha2", 0.1, skewed(0.0, 50.0), " us", 4),
             mu1: float("Mu1", 5.0, skewed(0.0, 1000.0), "", 3),
             mu2: float("Mu2", 0.2, unit_range(), "", 3),
+        }
+    }
+}
+
+impl Default for StrikeGroup {
+    fn default() -> Self {
+        Self {
             hardness_ms: float("Hardness", 0.5, skewed(0.0, 20.0), " ms", 3),
             velocity_hardness: float("Vel > Hardness", 0.5, unit_range(), "", 2),
             hit_x: float("Hit X", 0.37, unit_range(), "", 3),
@@ -260,6 +330,13 @@ impl Default for ModalForgeParams {
                 " deg",
                 1,
             ),
+        }
+    }
+}
+
+impl Default for PlayGroup {
+    fn default() -> Self {
+        Self {
             gain_db: float(
                 "Gain",
                 0.0,
@@ -278,7 +355,14 @@ impl Default for ModalForgeParams {
             mapping: EnumParam::new("Key Mapping", KeyMapping::Pitch),
             note_off_mute: BoolParam::new("Note-off Mute", false),
             mute_decay: float("Mute Decay", 40.0, skewed(1.0, 500.0), " /s", 1),
-            solver: EnumParam::new("Solver", SolverChoice::Auto),
+        }
+    }
+}
+
+impl Default for SolverGroup {
+    fn default() -> Self {
+        Self {
+            kind: EnumParam::new("Solver", SolverChoice::Auto),
             answers: EnumParam::new("Answers", AnswerChoice::FemOnly),
             element: EnumParam::new("Element", ElementChoice::Hex8i),
             modes: IntParam::new("Modes", 60, IntRange::Linear { min: 8, max: 200 }),
@@ -296,63 +380,63 @@ impl ModalForgeParams {
         damping_scale: f64,
         hardness_scale: f64,
     ) -> Voicing {
-        let preset = table.get(self.material.value());
-        let custom = self.material.value() == MaterialChoice::Custom;
+        let preset = table.get(self.material.preset.value());
+        let custom = self.material.preset.value() == MaterialChoice::Custom;
         let (e, rho) = if custom {
             (
-                self.youngs_gpa.value() as f64 * 1e9,
-                self.density.value() as f64,
+                self.material.youngs_gpa.value() as f64 * 1e9,
+                self.material.density.value() as f64,
             )
         } else {
             (preset.youngs_modulus_pa, preset.density_kg_m3)
         };
-        let damping = match self.damping.value() {
+        let damping = match self.damping.law.value() {
             DampingChoice::Material => preset.damping,
             DampingChoice::Rayleigh => DampingParams::Rayleigh {
-                alpha1: self.alpha1.value() as f64,
-                alpha2: self.alpha2_us.value() as f64 * 1e-6,
+                alpha1: self.damping.alpha1.value() as f64,
+                alpha2: self.damping.alpha2_us.value() as f64 * 1e-6,
             },
             DampingChoice::PowerLaw => DampingParams::PowerLaw {
-                mu1: self.mu1.value() as f64,
-                mu2: self.mu2.value() as f64,
+                mu1: self.damping.mu1.value() as f64,
+                mu2: self.damping.mu2.value() as f64,
             },
         };
         let damping = scale_damping(damping, damping_scale);
-        let direction = if self.force_normal.value() {
+        let direction = if self.strike.force_normal.value() {
             None
         } else {
             let (az, el) = (
-                (self.force_azimuth.value() as f64).to_radians(),
-                (self.force_elevation.value() as f64).to_radians(),
+                (self.strike.force_azimuth.value() as f64).to_radians(),
+                (self.strike.force_elevation.value() as f64).to_radians(),
             );
             Some([el.cos() * az.cos(), el.cos() * az.sin(), el.sin()])
         };
         Voicing {
             youngs_modulus_pa: e,
             density_kg_m3: rho,
-            size_m: self.size_m.value() as f64,
+            size_m: self.material.size_m.value() as f64,
             damping,
             hit: HitPoint {
                 position: [
-                    self.hit_x.value() as f64,
-                    self.hit_y.value() as f64,
-                    self.hit_z.value() as f64,
+                    self.strike.hit_x.value() as f64,
+                    self.strike.hit_y.value() as f64,
+                    self.strike.hit_z.value() as f64,
                 ],
                 direction,
             },
-            hardness_s: (self.hardness_ms.value() as f64 * 1e-3 * hardness_scale).min(0.1),
-            output_gain: 10f64.powf(self.gain_db.value() as f64 / 20.0),
+            hardness_s: (self.strike.hardness_ms.value() as f64 * 1e-3 * hardness_scale).min(0.1),
+            output_gain: 10f64.powf(self.play.gain_db.value() as f64 / 20.0),
             normalise: true,
-            mute_decay_per_s: self.mute_decay.value() as f64,
+            mute_decay_per_s: self.play.mute_decay.value() as f64,
         }
     }
 
     /// Poisson's ratio of the selected material.
     pub fn poisson_ratio(&self, table: &MaterialTable) -> f64 {
-        if self.material.value() == MaterialChoice::Custom {
-            self.poisson.value() as f64
+        if self.material.preset.value() == MaterialChoice::Custom {
+            self.material.poisson.value() as f64
         } else {
-            table.get(self.material.value()).poisson_ratio
+            table.get(self.material.preset.value()).poisson_ratio
         }
     }
 }

@@ -75,7 +75,7 @@ fn presets_and_custom_knobs_reach_the_voicing() {
     let table = MaterialTable::new();
     let v = params.voicing(&table, 1.0, 1.0);
     let glass = modalforge::material::Material::preset("glass").unwrap();
-    assert_eq!(params.material.value(), MaterialChoice::Glass);
+    assert_eq!(params.material.preset.value(), MaterialChoice::Glass);
     assert_eq!(v.youngs_modulus_pa, glass.youngs_modulus_pa);
     assert_eq!(v.density_kg_m3, glass.density_kg_m3);
     assert!(v.validate().is_ok() && v.normalise);
@@ -114,4 +114,50 @@ fn the_solve_source_asks_once_per_change() {
     *params.object.write().unwrap() = Sculpt::from_grid(&bar);
     assert!(source().is_some(), "a new object is solved");
     assert!(source().is_none());
+}
+
+#[test]
+fn parameter_ids_are_frozen_and_hosts_see_five_groups() {
+    // The ids and order as shipped before the groups existed: a project saved then stores
+    // its values under these ids, so they must never change (the groups only add a path).
+    const FROZEN: [(&str, &str); 27] = [
+        ("mat", "Material"),
+        ("e", "Material"),
+        ("rho", "Material"),
+        ("nu", "Material"),
+        ("size", "Material"),
+        ("dmod", "Damping"),
+        ("a1", "Damping"),
+        ("a2", "Damping"),
+        ("mu1", "Damping"),
+        ("mu2", "Damping"),
+        ("hard", "Strike"),
+        ("velh", "Strike"),
+        ("hx", "Strike"),
+        ("hy", "Strike"),
+        ("hz", "Strike"),
+        ("fnrm", "Strike"),
+        ("faz", "Strike"),
+        ("fel", "Strike"),
+        ("gain", "Play"),
+        ("budget", "Play"),
+        ("map", "Play"),
+        ("mute", "Play"),
+        ("mdec", "Play"),
+        ("solver", "Solver"),
+        ("answer", "Solver"),
+        ("elem", "Solver"),
+        ("modes", "Solver"),
+    ];
+    let params = ModalForgeParams::default();
+    let map: Vec<(String, String)> = params
+        .param_map()
+        .into_iter()
+        .map(|(id, _, group)| (id, group))
+        .collect();
+    let want: Vec<(String, String)> = FROZEN
+        .iter()
+        .map(|(id, group)| (id.to_string(), group.to_string()))
+        .collect();
+    assert_eq!(map, want);
 }

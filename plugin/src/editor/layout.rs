@@ -178,10 +178,7 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
         if let Some(p) = response.interact_pointer_pos() {
             if let Some(hit) = app.click([p.x - centre.x, p.y - centre.y]) {
                 let params = app.params.clone();
-                for (param, v) in [&params.hit_x, &params.hit_y, &params.hit_z]
-                    .into_iter()
-                    .zip(hit.fractions)
-                {
+                for (param, v) in params.strike.hit().into_iter().zip(hit.fractions) {
                     setter.begin_set_parameter(param);
                     setter.set_parameter(param, v);
                     setter.end_set_parameter(param);
@@ -190,7 +187,7 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
         }
     }
     painter.rect_filled(rect, 0.0, Color32::from_gray(28));
-    let base = material_colour(app.params.material.value());
+    let base = material_colour(app.params.material.preset.value());
     let mut mesh = egui::Mesh::default();
     let faces = view3d::visible_faces(&app.sculptor, &app.camera);
     for f in &faces {
@@ -254,19 +251,21 @@ fn material_colour(m: MaterialChoice) -> [u8; 3] {
 }
 
 pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
-    let p = app.params.clone();
+    let params = app.params.clone();
+    let p = &params.material;
     ui.heading("Material");
-    enum_combo(ui, "Material", &p.material, setter);
-    if p.material.value() == MaterialChoice::Custom {
+    enum_combo(ui, "Material", &p.preset, setter);
+    if p.preset.value() == MaterialChoice::Custom {
         slider(ui, "E", &p.youngs_gpa, setter);
         slider(ui, "Density", &p.density, setter);
         slider(ui, "Poisson", &p.poisson, setter);
     }
     slider(ui, "Size", &p.size_m, setter);
     ui.separator();
+    let p = &params.damping;
     ui.heading("Damping");
-    enum_combo(ui, "Law", &p.damping, setter);
-    match p.damping.value() {
+    enum_combo(ui, "Law", &p.law, setter);
+    match p.law.value() {
         crate::params::DampingChoice::Material => {}
         crate::params::DampingChoice::Rayleigh => {
             slider(ui, "Alpha1", &p.alpha1, setter);
@@ -278,6 +277,7 @@ pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSet
         }
     }
     ui.separator();
+    let p = &params.strike;
     ui.heading("Strike");
     slider(ui, "Hardness", &p.hardness_ms, setter);
     slider(ui, "Vel > Hard", &p.velocity_hardness, setter);
@@ -293,6 +293,7 @@ pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSet
         app.link.audition.fetch_add(1, Ordering::Relaxed);
     }
     ui.separator();
+    let p = &params.play;
     ui.heading("Play");
     enum_combo(ui, "Keys", &p.mapping, setter);
     slider(ui, "Note-off mute", &p.note_off_mute, setter);
@@ -300,8 +301,9 @@ pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSet
     slider(ui, "Gain", &p.gain_db, setter);
     slider(ui, "Mode budget", &p.mode_budget, setter);
     ui.separator();
+    let p = &params.solver;
     ui.heading("Solver");
-    enum_combo(ui, "Solver", &p.solver, setter);
+    enum_combo(ui, "Solver", &p.kind, setter);
     enum_combo(ui, "Element", &p.element, setter);
     slider(ui, "Modes", &p.modes, setter);
 }
