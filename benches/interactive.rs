@@ -15,11 +15,11 @@
 //! `-- --quick` runs the default object only; `-- --scipy DIR` exports the matrices and this
 //! solver's answers for the SciPy comparison (`scripts/scipy-compare.sh`).
 
+use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::coarse_grid;
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
-use modalforge::modal::ModeBasis;
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::{ops, VoxelGrid};
 use std::time::Instant;

@@ -13,9 +13,9 @@
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
 
+use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::{ElementKind, FemModel};
-use modalforge::modal::ModeBasis;
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::VoxelGrid;
 use std::time::Instant;

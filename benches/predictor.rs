@@ -6,7 +6,7 @@
 //! (`bowl:d=16,wall=2`, resampled to 32) and a 32-voxel solid sphere; the shipped weights.
 
 use criterion::Criterion;
-use modalforge::modal::Hit;
+use modalforge::basis::Hit;
 use modalforge::predictor::Predictor;
 use modalforge::shape::spec::ShapeSpec;
 use std::hint::black_box;

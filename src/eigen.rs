@@ -1,6 +1,6 @@
 //! Eigensolvers for the lowest modes of `K u = lambda M u`.
 //!
-//! Where it sits: after [`crate::fem`] assembly, before [`crate::modal`] turns eigenpairs into
+//! Where it sits: after [`crate::fem`] assembly, before [`crate::basis`] turns eigenpairs into
 //! modes. Two solvers share one contract ([`EigenOptions`] in, [`EigenSolution`] or a typed
 //! [`EigenError`] out): shift-invert block Lanczos on a sparse Cholesky factorisation
 //! ([`lanczos`]), and LOBPCG ([`lobpcg`], Jin et al. 2022, sec. 4.2.4) preconditioned by geometric

@@ -1,7 +1,7 @@
 //! The real-time engine: a wait-free audio side that strikes and voices solved objects, and a
 //! worker thread that solves shape edits.
 //!
-//! Where it sits: between the mode sources ([`ObjectModes`]: a [`crate::modal::ModeBasis`] from
+//! Where it sits: between the mode sources ([`ObjectModes`]: a [`crate::basis::ModeBasis`] from
 //! FEM or a [`crate::predictor::object::PredictedObject`] from the neural predictor) and the audio callback of the plugin, the standalone app or the CLI.
 //!
 //! ```text

@@ -8,7 +8,7 @@
 //! matrices are `E h K` and `rho h^3 M`, so the eigenvalues of a physical object are
 //! `E / (rho h^2)` times the reference ones and its mass-normalised modes are `(rho h^3)^(-1/2)`
 //! times the reference ones (the exact form of Deep-Modal's scaling laws, Jin et al. 2020, eq.
-//! 10-12; [`crate::modal`] applies them).
+//! 10-12; [`crate::basis`] applies them).
 
 pub mod cut;
 pub mod element;

@@ -1,7 +1,7 @@
 //! ModalForge: a physically based impact-sound instrument.
 //!
 //! Data flow (see ARCHITECTURE.md): a shape ([`shape`]: voxels, partial where a curved surface
-//! cuts them) is assembled by [`fem`] and solved by [`eigen`] into a [`modal::ModeBasis`] (the
+//! cuts them) is assembled by [`fem`] and solved by [`eigen`] into a [`basis::ModeBasis`] (the
 //! expensive shape solve); the neural [`predictor`] gives an approximate one in milliseconds.
 //! Voicing a basis with a material, a size and a strike gives a [`modes::ModeSet`] (so does a
 //! mode file, the analytic [`demo`] bar, or [`analysis`] of a recording);
@@ -16,7 +16,7 @@
 //! use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 //! use modalforge::fem::ElementKind;
 //! use modalforge::material::Material;
-//! use modalforge::modal::ModeBasis;
+//! use modalforge::basis::ModeBasis;
 //! use modalforge::modes::CullSettings;
 //! use modalforge::shape::primitives::Primitive;
 //! use modalforge::synth::{Excitation, OscillatorBank};
@@ -64,13 +64,13 @@
 #![deny(missing_docs)]
 
 pub mod analysis;
+pub mod basis;
 pub(crate) mod buffer;
 pub mod demo;
 pub mod eigen;
 pub mod engine;
 pub mod fem;
 pub mod material;
-pub mod modal;
 pub mod modes;
 pub mod predictor;
 pub mod rng;

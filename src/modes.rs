@@ -1,7 +1,7 @@
 //! The mode data model: what the synthesis banks play.
 //!
 //! Where it sits: the output of every mode source (the FEM solution voiced by
-//! [`crate::modal::ModeBasis`], JSON files, the analytic demo in [`crate::demo`]) and the input
+//! [`crate::basis::ModeBasis`], JSON files, the analytic demo in [`crate::demo`]) and the input
 //! of the banks in [`crate::synth`]. A mode `i` struck at `t = 0` rings as
 //! `q_i(t) = g_i e^(-d_i t) sin(2 pi f_i t)` (Deep-Modal, Jin et al. 2020, eq. 3 and 13, with the
 //! initial phase zero because the object starts at rest).

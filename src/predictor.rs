@@ -5,7 +5,7 @@
 //! Manocha 2020, sec. 3-4: per struck cell and force direction, a mask and a normalised
 //! log-amplitude per mel band) plus, per band, the exact frequency of its strongest mode, so a
 //! predicted mode is in tune rather than at its band centre. [`bands`] encodes a FEM
-//! [`crate::modal::ModeBasis`] into that form (the training labels) and decodes it back to
+//! [`crate::basis::ModeBasis`] into that form (the training labels) and decodes it back to
 //! modes a strike plays. [`network`] is the burn network, [`train`] fits it (`modalforge
 //! train`) on the records [`dataset`] makes, [`metrics`] scores it, and [`Predictor`] runs it:
 //! once per shape ([`Predictor::predict`], the trunk) and once per strike
@@ -329,7 +329,7 @@ mod tests {
         for (a, b) in p.eigenvalues.iter().zip(&box_eigs) {
             assert!((a / b - 4.0).abs() < 1e-12);
         }
-        let hit = crate::modal::Hit {
+        let hit = crate::basis::Hit {
             point_m: [0.005, 0.02, 0.03],
             direction: Some([0.0, 0.0, 1.0]),
         };
@@ -364,7 +364,7 @@ mod tests {
         }
         // Voiced like FEM: the material's frequencies, finite gains.
         let glass = crate::material::Material::preset("glass").unwrap();
-        for m in p.voice(&glass, 0.01, &hit) {
+        for m in p.strike(&glass, 0.01, &hit) {
             assert!(m.gain.is_finite() && m.natural_hz > 0.0);
         }
         assert!(predictor

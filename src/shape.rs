@@ -433,7 +433,7 @@ impl VoxelGrid {
     }
 
     /// A hash of the occupancy pattern and dimensions (not the voxel size): the cache key of a
-    /// shape's mode basis, which is size independent (see [`crate::modal`]).
+    /// shape's mode basis, which is size independent (see [`crate::basis`]).
     pub fn shape_hash(&self) -> u64 {
         let mut h = std::collections::hash_map::DefaultHasher::new();
         self.dims.hash(&mut h);

@@ -2,10 +2,10 @@
 //! free-free bar; rigid-body mode counts for touching and separate parts; the scaling laws
 //! against a direct physical re-solve; convergence under refinement.
 
+use modalforge::basis::{Hit, ModeBasis};
 use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::material::Material;
-use modalforge::modal::{Hit, ModeBasis};
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::VoxelGrid;
 use std::f64::consts::PI;

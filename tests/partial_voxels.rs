@@ -9,9 +9,9 @@
 mod common;
 
 use common::smooth::{frequency_errors, reference, worst, worst_split, NU};
+use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::{sparse, ElementKind, FemModel, UnitElement};
-use modalforge::modal::ModeBasis;
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::VoxelGrid;

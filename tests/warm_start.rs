@@ -7,10 +7,10 @@
 //! answer is not exact: its frequencies must be within 1e-3 (measured ~1e-4 here; the bench sees
 //! 1e-5 to 3e-3 on the presets), the ten-times margin a stated expectation allows.
 
+use modalforge::basis::ModeBasis;
 use modalforge::eigen::warm;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::{ElementKind, FemModel};
-use modalforge::modal::ModeBasis;
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::{ops, VoxelGrid};
 

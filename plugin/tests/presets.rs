@@ -2,11 +2,11 @@
 //! free-free bar for the steel bar's pitch, the material damping laws for how long each rings
 //! (published coefficients, presets/materials), and the range of human hearing.
 
+use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::spectrum::spectrum;
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
-use modalforge::modal::ModeBasis;
 use modalforge_plugin::presets::Preset;
 
 const FS: f64 = 48_000.0;

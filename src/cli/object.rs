@@ -1,10 +1,10 @@
 //! The object options shared by `modalforge modes` and `modalforge render`: shape, material,
 //! size and resolution, element, solver, strike; and the `modes` report.
 
+use modalforge::basis::{BasisError, Hit, ModeBasis};
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::ElementKind;
 use modalforge::material::{DampedMode, DampingLaw, Material, MaterialError};
-use modalforge::modal::{Hit, ModalError, ModeBasis};
 use modalforge::shape::mesh::{self, MeshError};
 use modalforge::shape::spec::{ShapeSpec, SpecError};
 use modalforge::shape::vox::{self, VoxError};
@@ -145,7 +145,7 @@ pub enum ObjectError {
     Material(#[from] MaterialError),
     /// Shape, solve or voicing failed.
     #[error(transparent)]
-    Modal(#[from] ModalError),
+    Modal(#[from] BasisError),
     /// A bad option value.
     #[error("{0}")]
     Option(String),
@@ -274,7 +274,7 @@ fn voxels_of(
             } else {
                 shape.rasterize(scale, 1.0)
             }
-            .map_err(ModalError::from)?;
+            .map_err(BasisError::from)?;
             if let Some(w) = hollow {
                 grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
             }
@@ -324,12 +324,12 @@ impl Object {
         // Physical scale: --voxel-size, else --size over the grid's longest side.
         let longest_vox = *grid.dims().iter().max().unwrap() as f64;
         let h = args.voxel_size.unwrap_or(size_m / longest_vox);
-        let grid = grid.with_voxel_size(h).map_err(ModalError::from)?;
+        let grid = grid.with_voxel_size(h).map_err(BasisError::from)?;
         let grid = match args.split {
             1 => grid,
-            n => grid.split(n).map_err(ModalError::from)?,
+            n => grid.split(n).map_err(BasisError::from)?,
         };
-        grid.check_solvable().map_err(ModalError::from)?;
+        grid.check_solvable().map_err(BasisError::from)?;
         Ok(Object {
             grid,
             material,
@@ -507,7 +507,7 @@ pub fn neural_report(
 ) -> ModesReport {
     use modalforge::predictor::bands::{self, BANDS, DIRECTIONS};
     let h = object.grid.voxel_size_m();
-    let mut voiced = predicted.voice(&object.material, h, hit);
+    let mut voiced = predicted.strike(&object.material, h, hit);
     // The bands this strike excites (a masked-off band has no force here).
     voiced.retain(|m| m.gain != 0.0);
     if let Some(f) = fmax_hz {
@@ -561,7 +561,7 @@ pub fn neural_report(
     }
 }
 
-fn mode_report(m: &modalforge::modal::VoicedMode) -> ModeReport {
+fn mode_report(m: &modalforge::basis::StruckMode) -> ModeReport {
     match m.damped {
         DampedMode::Oscillating {
             freq_hz,
@@ -586,7 +586,7 @@ fn mode_report(m: &modalforge::modal::VoicedMode) -> ModeReport {
 /// Builds the report for a solved object.
 pub fn report(object: &Object, basis: &ModeBasis, hit: &Hit) -> Result<ModesReport, ObjectError> {
     let h = object.grid.voxel_size_m();
-    let voiced = basis.voice(&object.material, h, hit)?;
+    let voiced = basis.strike(&object.material, h, hit)?;
     let sol = &basis.solution;
     Ok(ModesReport {
         modes: voiced.iter().map(mode_report).collect(),

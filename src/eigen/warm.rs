@@ -3,10 +3,10 @@
 //! Where it sits: beside [`super::lanczos`] and [`super::lobpcg`], behind the same contract
 //! ([`EigenOptions`] in, [`EigenSolution`] out, the residual criterion of NeuralSound, Jin et al.
 //! 2022 eq. 6). Two answers start from the previous shape's solution:
-//! - [`ritz`], the instant one ([`crate::modal::ModeBasis::carried_ritz`], played by the
+//! - [`ritz`], the instant one ([`crate::basis::ModeBasis::carried_ritz`], played by the
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
 //!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation;
-//! - [`solve`], the exact one ([`crate::modal::ModeBasis::solve_warm`]): the carried block
+//! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
 //!

@@ -6,7 +6,7 @@
 //! freed on the worker.
 
 use super::voicing::HitPoint;
-use crate::modal::{Hit, HitError, ModeBasis};
+use crate::basis::{Hit, HitError, ModeBasis};
 use crate::predictor::object::PredictedObject;
 use std::sync::Arc;
 

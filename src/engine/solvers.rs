@@ -18,8 +18,8 @@
 
 use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
+use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::eigen::ModeCount;
-use crate::modal::{ModalError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::predictor::Predictor;
 use crate::shape::{ops, VoxelGrid};
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -167,7 +167,7 @@ impl ModeSolver for IncrementalFemSolver {
         self.answers.get() != Answers::PredictorOnly
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
         // iterations, but they cost about as much as the whole Lanczos solve on the same
         // factor: measured slower on most objects of `cargo bench --bench interactive`. The
@@ -214,8 +214,8 @@ impl ModeSolver for CoarseFemSolver {
         Some(COARSE_EXPECTED_ERROR)
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
-        let grid = coarse_grid(&r.grid).ok_or(ModalError::NoCoarseGrid)?;
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        let grid = coarse_grid(&r.grid).ok_or(BasisError::NoCoarseGrid)?;
         ModeBasis::solve(&grid, r.element, r.poisson_ratio, r.solver, &r.options)
             .map(ObjectModes::Fem)
     }
@@ -241,10 +241,10 @@ impl ModeSolver for CarriedRitzSolver {
         Some(CARRIED_EXPECTED_ERROR)
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
-        let previous = lock(&self.last).clone().ok_or(ModalError::NoPrevious)?;
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        let previous = lock(&self.last).clone().ok_or(BasisError::NoPrevious)?;
         ModeBasis::carried_ritz(&r.grid, r.element, r.poisson_ratio, count_of(r), &previous)
-            .unwrap_or(Err(ModalError::NoPrevious))
+            .unwrap_or(Err(BasisError::NoPrevious))
             .map(ObjectModes::Fem)
     }
 }
@@ -320,11 +320,11 @@ impl ModeSolver for NeuralSolver {
         Some(NEURAL_EXPECTED_ERROR)
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         self.predictor
             .predict(&r.grid)
             .map(ObjectModes::Predicted)
-            .map_err(|e| ModalError::Predictor(e.to_string()))
+            .map_err(|e| BasisError::Predictor(e.to_string()))
     }
 }
 

@@ -10,7 +10,7 @@
 
 use super::object::ObjectModes;
 use super::voicing::{tune, Voicing};
-use crate::modal::HitError;
+use crate::basis::HitError;
 use crate::synth::excitation::Excitation;
 use num_complex::Complex64;
 use std::f64::consts::TAU;

@@ -3,10 +3,10 @@
 //! Rayleigh mass damping, the scaling law for pitch, and counted solver calls.
 
 use super::*;
+use crate::basis::{BasisError, Hit, ModeBasis};
 use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 use crate::fem::ElementKind;
 use crate::material::Material;
-use crate::modal::{Hit, ModalError, ModeBasis};
 use crate::modes::CullSettings;
 use crate::shape::VoxelGrid;
 use crate::synth::{Excitation, OscillatorBank};
@@ -309,7 +309,7 @@ impl ModeSolver for Slow {
     fn name(&self) -> &'static str {
         "slow"
     }
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         self.calls.fetch_add(1, Ordering::SeqCst);
         std::thread::sleep(Duration::from_millis(300));
         FemSolver.solve(r)

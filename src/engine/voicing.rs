@@ -3,7 +3,7 @@
 //!
 //! Where it sits: the audio side of [`crate::engine`] holds one [`Voicing`]; every mode a voice
 //! plays is tuned from its reference eigenvalue by [`tune`]: the scaling law
-//! `omega^2 = omega_ref^2 E / (rho h^2)` (Jin et al. 2020, eq. 12, [`crate::modal`]) and the
+//! `omega^2 = omega_ref^2 E / (rho h^2)` (Jin et al. 2020, eq. 12, [`crate::basis`]) and the
 //! damping model's `c(omega^2)` (Sterling and Lin 2016, eq. 10-16). Everything here is `Copy` and
 //! allocation-free, so a knob turned in the DAW reaches the ringing modes within one block.
 
@@ -112,8 +112,8 @@ pub struct HitPoint {
 
 impl HitPoint {
     /// The hit in reference units (voxel edge 1) on a grid of `dims` voxels.
-    pub fn reference_hit(&self, dims: [usize; 3]) -> crate::modal::Hit {
-        crate::modal::Hit {
+    pub fn reference_hit(&self, dims: [usize; 3]) -> crate::basis::Hit {
+        crate::basis::Hit {
             point_m: [0, 1, 2].map(|a| self.position[a] * dims[a] as f64),
             direction: self.direction,
         }
@@ -121,7 +121,7 @@ impl HitPoint {
 }
 
 impl Default for HitPoint {
-    /// The CLI's default hit: top face, off-centre (see [`crate::modal::ModeBasis::default_hit`]).
+    /// The CLI's default hit: top face, off-centre (see [`crate::basis::ModeBasis::default_hit`]).
     fn default() -> Self {
         Self {
             position: [0.37, 0.41, 1.0],

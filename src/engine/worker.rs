@@ -13,9 +13,9 @@
 
 use super::object::{ObjectModes, SolvedObject};
 use super::EngineStats;
+use crate::basis::{BasisError, ModeBasis};
 use crate::eigen::{EigenOptions, SolverKind};
 use crate::fem::ElementKind;
-use crate::modal::{ModalError, ModeBasis};
 
 use crate::shape::VoxelGrid;
 use rtrb::{Consumer, Producer, PushError};
@@ -47,7 +47,7 @@ pub trait ModeSolver: Send {
     /// Short name for the status line ("fem", "neural").
     fn name(&self) -> &'static str;
     /// Solves the request.
-    fn solve(&mut self, request: &ObjectRequest) -> Result<ObjectModes, ModalError>;
+    fn solve(&mut self, request: &ObjectRequest) -> Result<ObjectModes, BasisError>;
     /// Whether this solver answers `request` at all (a progressive first answer is skipped
     /// where the exact one is fast anyway). Default: always.
     fn applies(&self, _request: &ObjectRequest) -> bool {
@@ -68,7 +68,7 @@ impl ModeSolver for FemSolver {
         "fem"
     }
 
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, ModalError> {
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)
             .map(ObjectModes::Fem)
     }

@@ -24,7 +24,7 @@
 //!   over every strike), stored exactly as `log10(Hz)`. A band is about 15 % wide at 1 kHz, so
 //!   playing band centres would be up to a semitone off; this keeps a predicted mode in tune.
 
-use crate::modal::{Hit, HitError, ModeBasis};
+use crate::basis::{Hit, HitError, ModeBasis};
 use crate::shape::VoxelGrid;
 use std::f64::consts::TAU;
 

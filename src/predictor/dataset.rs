@@ -12,9 +12,9 @@
 //! plates with holes and objects with handles.
 
 use super::bands::{self, BandEncoding, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
+use crate::basis::ModeBasis;
 use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 use crate::fem::ElementKind;
-use crate::modal::ModeBasis;
 use crate::rng::SplitMix64;
 use crate::shape::primitives::Primitive;
 use crate::shape::{ops, VoxelGrid, PARTIAL_RECORD_BYTES};
@@ -326,7 +326,7 @@ pub struct Record {
 pub enum LabelError {
     /// The FEM solve failed.
     #[error(transparent)]
-    Modal(#[from] crate::modal::ModalError),
+    Modal(#[from] crate::basis::BasisError),
     /// The modes could not be encoded.
     #[error(transparent)]
     Encode(#[from] bands::EncodeError),

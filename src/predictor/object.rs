@@ -2,7 +2,7 @@
 //! to fill the input box, voiced for any material, size, hit and force like a FEM object.
 //!
 //! Where it sits: [`super::Predictor::predict`] makes a [`PredictedObject`]; its
-//! [`PredictedObject::voice`] gives the same [`VoicedMode`]s as [`crate::modal::ModeBasis::voice`]
+//! [`PredictedObject::strike`] gives the same [`StruckMode`]s as [`crate::basis::ModeBasis::strike`]
 //! (the material's damping law, gains as impulse amplitudes), so the CLI's `modes` and `render`
 //! treat both alike.
 //!
@@ -13,7 +13,7 @@
 //!   edge). A predicted band frequency `f_ref` is then the reference-unit eigenvalue
 //!   `lambda = reference_eigenvalue(f_ref)` (voxel edge 1, E = rho = 1), and the material's
 //!   `E / (rho h_box^2)` gives the physical one: Deep-Modal's scaling laws (Jin, Li and
-//!   Manocha 2020, eq. 10-12), the same as [`crate::modal::ModeBasis::eigenvalues`].
+//!   Manocha 2020, eq. 10-12), the same as [`crate::basis::ModeBasis::eigenvalues`].
 //! - **Gains.** The network predicts each band's gain relative to the strike's loudest mode.
 //!   The absolute level is estimated as for a free-free beam's end, where a mass-normalised
 //!   mode's value is `2 / sqrt(m)`: the loudest mode's impulse amplitude is
@@ -26,9 +26,9 @@
 use super::bands::{self, BANDS, CELLS_PER_AXIS, INPUT_SIDE};
 use super::network::MASK_CHANNELS;
 use super::Prediction;
+use crate::basis::{Hit, StruckMode};
 use crate::material::DampedMode;
 use crate::material::Material;
-use crate::modal::{Hit, VoicedMode};
 
 /// A shape's predicted modes (see the module docs).
 #[derive(Clone, Debug)]
@@ -44,7 +44,7 @@ pub struct PredictedObject {
     /// Time the network took, ms.
     pub inference_ms: f64,
     /// One mode per band predicted to hold one, ascending: reference-unit eigenvalues with the
-    /// shape's own voxel edge as the unit (as [`crate::modal::ModeBasis`] keeps them).
+    /// shape's own voxel edge as the unit (as [`crate::basis::ModeBasis`] keeps them).
     pub eigenvalues: Vec<f64>,
     /// The band of each mode.
     bands: Vec<usize>,
@@ -111,7 +111,7 @@ impl PredictedObject {
     }
 
     /// Reference-unit modal forces at the hit (shape voxel edge `voxel_size_m`), one per mode
-    /// into `out`, as [`crate::modal::ModeBasis::reference_forces_into`] gives them: multiply
+    /// into `out`, as [`crate::basis::ModeBasis::reference_forces_into`] gives them: multiply
     /// by `1 / sqrt(rho h^3)` for physical units. The network's relative gains at the struck
     /// cell, levelled by the free-end estimate of the module docs. A hit without a force
     /// direction pushes towards the shape's centre. Never allocates (the engine calls it on
@@ -167,8 +167,8 @@ impl PredictedObject {
     }
 
     /// Every predicted mode for a material, a voxel edge and a strike: natural frequency,
-    /// damping and impulse amplitude, ascending (as [`crate::modal::ModeBasis::voice`]).
-    pub fn voice(&self, material: &Material, voxel_size_m: f64, hit: &Hit) -> Vec<VoicedMode> {
+    /// damping and impulse amplitude, ascending (as [`crate::basis::ModeBasis::strike`]).
+    pub fn strike(&self, material: &Material, voxel_size_m: f64, hit: &Hit) -> Vec<StruckMode> {
         let mut forces = vec![0.0; self.mode_count()];
         self.reference_forces_into(hit, voxel_size_m, &mut forces);
         let s = material.youngs_modulus_pa / (material.density_kg_m3 * voxel_size_m * voxel_size_m);
@@ -185,7 +185,7 @@ impl PredictedObject {
                     }
                     DampedMode::Overdamped { .. } => 0.0,
                 };
-                VoicedMode {
+                StruckMode {
                     natural_hz: lambda.sqrt() / std::f64::consts::TAU,
                     damped,
                     gain,

@@ -295,7 +295,7 @@ impl modalforge::engine::ModeSolver for Labelled {
     fn solve(
         &mut self,
         r: &modalforge::engine::ObjectRequest,
-    ) -> Result<modalforge::engine::ObjectModes, modalforge::modal::ModalError> {
+    ) -> Result<modalforge::engine::ObjectModes, modalforge::basis::BasisError> {
         std::thread::sleep(std::time::Duration::from_millis(self.delay_ms));
         modalforge::engine::FemSolver.solve(r)
     }

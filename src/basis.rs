@@ -4,7 +4,7 @@
 //! Where it sits: after [`crate::eigen`], before [`crate::modes::ModeSet`]. The expensive part,
 //! [`ModeBasis::solve`], depends only on the voxel pattern, the element and Poisson's ratio; it
 //! is solved once in reference units (`E = 1`, `rho = 1`, voxel edge 1) and cached by shape hash.
-//! The cheap part, [`ModeBasis::voice`], applies a material, a size and a strike.
+//! The cheap part, [`ModeBasis::strike`], applies a material, a size and a strike.
 //!
 //! Scaling (Deep-Modal, Jin et al. 2020, eq. 10-12, in the exact form the FEM gives): the physical
 //! matrices are `K = E h K_ref` and `M = rho h^3 M_ref`, so `omega^2 = omega_ref^2 E / (rho h^2)`
@@ -146,7 +146,7 @@ fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
 
 /// Why a shape could not be solved.
 #[derive(Debug, thiserror::Error)]
-pub enum ModalError {
+pub enum BasisError {
     /// The shape is unusable.
     #[error(transparent)]
     Shape(#[from] ShapeError),
@@ -190,9 +190,9 @@ pub struct Hit {
     pub direction: Option<[f64; 3]>,
 }
 
-/// One voiced mode, with everything a caller may report.
+/// One mode of a struck basis, with everything a caller may report.
 #[derive(Clone, Debug, PartialEq)]
-pub struct VoicedMode {
+pub struct StruckMode {
     /// Undamped natural frequency, Hz.
     pub natural_hz: f64,
     /// Damping outcome.
@@ -211,7 +211,7 @@ impl ModeBasis {
         poisson_ratio: f64,
         solver: SolverKind,
         options: &EigenOptions,
-    ) -> Result<Self, ModalError> {
+    ) -> Result<Self, BasisError> {
         let t = std::time::Instant::now();
         let model = FemModel::assemble(grid, element, poisson_ratio)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -230,7 +230,7 @@ impl ModeBasis {
         solver: SolverKind,
         options: &EigenOptions,
         previous: &ModeBasis,
-    ) -> Result<Self, ModalError> {
+    ) -> Result<Self, BasisError> {
         let t = std::time::Instant::now();
         let model = FemModel::assemble(grid, element, poisson_ratio)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -259,7 +259,7 @@ impl ModeBasis {
         poisson_ratio: f64,
         count: usize,
         previous: &ModeBasis,
-    ) -> Option<Result<Self, ModalError>> {
+    ) -> Option<Result<Self, BasisError>> {
         let old = &previous.model;
         if old.kind != element || old.poisson_ratio != poisson_ratio {
             return None;
@@ -278,7 +278,7 @@ impl ModeBasis {
         Some(
             eigen::warm::ritz(&model, old, &previous.solution, offset, count)
                 .map(|solution| Self::from_parts(grid, model, solution, assemble_ms))
-                .map_err(ModalError::from),
+                .map_err(BasisError::from),
         )
     }
 
@@ -319,10 +319,10 @@ impl ModeBasis {
         material: &Material,
         voxel_size_m: f64,
         hit: &Hit,
-    ) -> Result<Vec<f64>, ModalError> {
+    ) -> Result<Vec<f64>, BasisError> {
         let mut out = vec![0.0; self.solution.vectors.ncols()];
         self.reference_forces_into(hit, voxel_size_m, &mut out)
-            .map_err(|e| ModalError::BadHit(e.to_string()))?;
+            .map_err(|e| BasisError::BadHit(e.to_string()))?;
         let scale = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
         out.iter_mut().for_each(|f| *f *= scale);
         Ok(out)
@@ -370,14 +370,14 @@ impl ModeBasis {
     }
 
     /// Applies a material, a voxel size and a strike: every computed mode, damped, with gains.
-    pub fn voice(
+    pub fn strike(
         &self,
         material: &Material,
         voxel_size_m: f64,
         hit: &Hit,
-    ) -> Result<Vec<VoicedMode>, ModalError> {
+    ) -> Result<Vec<StruckMode>, BasisError> {
         if (material.poisson_ratio - self.model.poisson_ratio).abs() > 1e-12 {
-            return Err(ModalError::PoissonMismatch {
+            return Err(BasisError::PoissonMismatch {
                 basis: self.model.poisson_ratio,
                 material: material.poisson_ratio,
             });
@@ -396,7 +396,7 @@ impl ModeBasis {
                     }
                     DampedMode::Overdamped { .. } => 0.0,
                 };
-                VoicedMode {
+                StruckMode {
                     natural_hz: l.sqrt() / std::f64::consts::TAU,
                     damped,
                     gain,
@@ -412,9 +412,9 @@ impl ModeBasis {
         material: &Material,
         voxel_size_m: f64,
         hit: &Hit,
-    ) -> Result<ModeSet, ModalError> {
+    ) -> Result<ModeSet, BasisError> {
         let (mut f, mut d, mut g) = (Vec::new(), Vec::new(), Vec::new());
-        for m in self.voice(material, voxel_size_m, hit)? {
+        for m in self.strike(material, voxel_size_m, hit)? {
             if let DampedMode::Oscillating {
                 freq_hz,
                 decay_per_s,
