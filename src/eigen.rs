@@ -66,10 +66,9 @@ pub enum SolverKind {
     Lobpcg,
     /// LOBPCG for models of at least [`AUTO_LOBPCG_DOFS`] DOFs asked for at most
     /// [`AUTO_LOBPCG_MAX_MODES`] modes at a residual it reaches (>= 1e-7); Lanczos otherwise.
-    /// Measured (`modalforge modes --solver ...`, one core, hex8i, 20 modes): the 32^3 sphere
-    /// (59k DOFs) takes 2.1 s by LOBPCG and 8.2 s by Lanczos, the 32^3 bowl (15k DOFs) 0.42 s
-    /// and 0.56 s; for many modes Lanczos wins (80 modes of the bowl, before Lanczos was
-    /// made faster: 4.5 s against 6.3 s). Where LOBPCG stalls (`NoConvergence`: its multigrid
+    /// Measured by `cargo bench --bench eigen -- --table` (figures in the README's Benchmarks
+    /// section): LOBPCG is about 3x faster on a solid 32^3 sphere, where Lanczos' factor
+    /// dominates, and slower on shells and for many modes. Where LOBPCG stalls (`NoConvergence`: its multigrid
     /// coarsens cut voxels as whole ones, and about one generated object in twenty stalled at a
     /// residual of 1e-3), Auto solves again by Lanczos.
     #[value(help = "LOBPCG from 30k DOFs for up to 100 modes, else Lanczos (measured)")]
