@@ -15,12 +15,16 @@
 //!
 //! The modes' decay rates are then fitted by the damping laws ([`damping_fit`]).
 //!
+//! Given the struck object's shape, size and hit, [`material_fit`] then finds its material's
+//! `E/rho` and Poisson's ratio from the modes.
+//!
 //! Not yet built (issue 14): the second extraction method (iterative spectrogram peak picking,
-//! Sterling and Lin 2016), material inference, resynthesis with a spectral refinement, and the
-//! plugin's "match a recording".
+//! Sterling and Lin 2016), resynthesis with a spectral refinement, and the plugin's "match a
+//! recording".
 
 pub mod bands;
 pub mod damping_fit;
+pub mod material_fit;
 pub mod pencil;
 pub mod synthetic;
 pub mod wav;

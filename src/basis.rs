@@ -190,6 +190,23 @@ pub struct Hit {
     pub direction: Option<[f64; 3]>,
 }
 
+impl Hit {
+    /// The default hit of a grid of `dims` voxels of edge `voxel_size_m`: `(0.37, 0.41, 1.0)`
+    /// of its bounding box (the top face, off-centre, so that few modes sit on a nodal line;
+    /// a solve snaps it to the nearest exposed face), along the face's inward normal.
+    pub fn default_for(dims: [usize; 3], voxel_size_m: f64) -> Hit {
+        let [nx, ny, nz] = dims;
+        Hit {
+            point_m: [
+                0.37 * nx as f64 * voxel_size_m,
+                0.41 * ny as f64 * voxel_size_m,
+                nz as f64 * voxel_size_m,
+            ],
+            direction: None,
+        }
+    }
+}
+
 /// One mode of a struck basis, with everything a caller may report.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StruckMode {
@@ -431,15 +448,7 @@ impl ModeBasis {
     /// Default hit: the exposed face nearest to `(0.37, 0.41, 1.0)` of the bounding box (top,
     /// off-centre, so that few modes sit on a nodal line), struck along its inward normal.
     pub fn default_hit(&self, voxel_size_m: f64) -> Hit {
-        let [nx, ny, nz] = self.grid_dims();
-        Hit {
-            point_m: [
-                0.37 * nx as f64 * voxel_size_m,
-                0.41 * ny as f64 * voxel_size_m,
-                nz as f64 * voxel_size_m,
-            ],
-            direction: None,
-        }
+        Hit::default_for(self.grid_dims(), voxel_size_m)
     }
 
     /// Nodes and interpolation weights of the exposed face nearest to the hit, and the face's

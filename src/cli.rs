@@ -205,6 +205,9 @@ pub enum CliError {
     /// Analysing a recording.
     #[error(transparent)]
     Analysis(#[from] modalforge::analysis::AnalysisError),
+    /// Fitting a material to a recording.
+    #[error(transparent)]
+    MaterialFit(#[from] modalforge::analysis::material_fit::MaterialFitError),
 }
 
 fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
@@ -413,7 +416,7 @@ fn render_modes(args: &RenderArgs) -> Result<ModeSet, CliError> {
     }
     let count = object.count(None, Some(args.fmax))?;
     let basis = object.solve(count, object_args.tolerance)?;
-    let hit = object.hit(&basis, &object_args)?;
+    let hit = object.hit(&object_args)?;
     Ok(basis
         .mode_set(&object.material, object.grid.voxel_size_m(), &hit)
         .map_err(object::ObjectError::from)?)
@@ -479,7 +482,7 @@ pub fn modes_command(args: &ModesArgs) -> Result<String, CliError> {
     } else {
         let count = object.count(args.modes, args.fmax)?;
         let basis = object.solve(count, args.object.tolerance)?;
-        let hit = object.hit(&basis, &args.object)?;
+        let hit = object.hit(&args.object)?;
         object::report(&object, &basis, &hit)?
     };
     if args.json {

@@ -39,9 +39,16 @@ fn one_line(e: &clap::Error) -> String {
     use clap::error::{ContextKind, ContextValue};
     let text = e.to_string();
     let first = text.lines().next().unwrap_or("invalid arguments");
-    match e.get(ContextKind::ValidValue) {
-        Some(ContextValue::Strings(values)) if !values.is_empty() => {
+    match (
+        e.get(ContextKind::ValidValue),
+        e.get(ContextKind::InvalidArg),
+    ) {
+        (Some(ContextValue::Strings(values)), _) if !values.is_empty() => {
             format!("{first}: use {} (see modalforge --help)", values.join(", "))
+        }
+        // "the following required arguments were not provided:" lists them on the next lines.
+        (_, Some(ContextValue::Strings(args))) if first.ends_with(':') => {
+            format!("{first} {} (see modalforge --help)", args.join(", "))
         }
         _ => format!("{first} (see modalforge --help)"),
     }

@@ -68,9 +68,68 @@ pub fn case(seed: u64, count: usize, snr_db: f64, duration_s: f64) -> Case {
         }
     }
     let lead_s = 0.02 + 0.05 * rng.uniform();
-    let n = (duration_s * fs) as usize;
     let noise_rms = 10f64.powf(-snr_db / 20.0);
-    let signal = (0..n)
+    let signal = ring(&modes, fs, lead_s, duration_s, noise_rms, &mut rng);
+    // The signal was scaled by 0.2 (headroom): so are the amplitudes and the noise.
+    for m in &mut modes {
+        m.gain *= 0.2;
+    }
+    Case {
+        fs,
+        lead_s,
+        modes,
+        noise_rms: 0.2 * noise_rms,
+        signal,
+    }
+}
+
+/// A strike of given modes (a solved object's, say): scaled so the strongest mode's
+/// amplitude is 0.2, with white noise `snr_db` below it and a `lead_s` lead-in of noise.
+pub fn strike_of(
+    modes: &[ExtractedMode],
+    fs: f64,
+    lead_s: f64,
+    duration_s: f64,
+    snr_db: f64,
+    seed: u64,
+) -> Case {
+    let mut rng = Rng(SplitMix64::new(seed));
+    let loudest = modes.iter().map(|m| m.gain.abs()).fold(0.0, f64::max);
+    let unit: Vec<ExtractedMode> = modes
+        .iter()
+        .map(|m| ExtractedMode {
+            gain: m.gain / loudest,
+            ..*m
+        })
+        .collect();
+    let noise_rms = 10f64.powf(-snr_db / 20.0);
+    let signal = ring(&unit, fs, lead_s, duration_s, noise_rms, &mut rng);
+    Case {
+        fs,
+        lead_s,
+        modes: unit
+            .iter()
+            .map(|m| ExtractedMode {
+                gain: 0.2 * m.gain,
+                ..*m
+            })
+            .collect(),
+        noise_rms: 0.2 * noise_rms,
+        signal,
+    }
+}
+
+/// `0.2 (sum of the modes from lead_s on + noise)`, `duration_s` at `fs`.
+fn ring(
+    modes: &[ExtractedMode],
+    fs: f64,
+    lead_s: f64,
+    duration_s: f64,
+    noise_rms: f64,
+    rng: &mut Rng,
+) -> Vec<f64> {
+    let n = (duration_s * fs) as usize;
+    (0..n)
         .map(|i| {
             let t = i as f64 / fs - lead_s;
             let ring: f64 = if t < 0.0 {
@@ -85,18 +144,7 @@ pub fn case(seed: u64, count: usize, snr_db: f64, duration_s: f64) -> Case {
             };
             0.2 * (ring + noise_rms * rng.gauss())
         })
-        .collect();
-    // The signal was scaled by 0.2 (headroom): so are the amplitudes and the noise.
-    for m in &mut modes {
-        m.gain *= 0.2;
-    }
-    Case {
-        fs,
-        lead_s,
-        modes,
-        noise_rms: 0.2 * noise_rms,
-        signal,
-    }
+        .collect()
 }
 
 /// How one strike's extraction compares with its truth.

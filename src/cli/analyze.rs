@@ -1,10 +1,17 @@
 //! `modalforge analyze`: the modes of a recorded strike ([`modalforge::analysis`]).
 //!
 //! Where it sits: beside `modes`; its JSON is itself a mode file for `render --modes` (the
-//! `phase` field, which mode files do not have, is ignored there).
+//! `phase` field, which mode files do not have, is ignored there). With `--fit-material` it
+//! also fits the material of the object the recording was struck from
+//! ([`modalforge::analysis::material_fit`]): the object options say its shape, size and hit,
+//! `--material` the starting guess.
 
+use super::object::{Object, ObjectArgs};
 use super::CliError;
-use modalforge::analysis::{self, AnalysisOptions};
+use modalforge::analysis::material_fit::{self, MaterialFit, MaterialFitOptions};
+use modalforge::analysis::{self, Analysis, AnalysisOptions};
+use modalforge::material::{self, Material};
+use serde::Serialize;
 use std::path::PathBuf;
 
 /// Options of `modalforge analyze`.
@@ -22,6 +29,46 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u32).range(1..=4000))]
     pub max_modes: u32,
+    /// Fit E/rho and Poisson's ratio of the struck object (its --shape, --size, --hit, as it
+    /// was struck; --material is the starting guess, and may be 16x off) to the recording.
+    #[arg(long, requires = "shape")]
+    pub fit_material: bool,
+    /// The struck object, for --fit-material.
+    #[command(flatten)]
+    pub object: ObjectArgs,
+}
+
+/// `analyze`'s JSON: the analysis, and the material when one was fitted.
+#[derive(Serialize)]
+struct Report<'a> {
+    #[serde(flatten)]
+    analysis: &'a Analysis,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    material: Option<MaterialReport>,
+}
+
+/// The fitted material as `analyze --json` reports it.
+#[derive(Serialize)]
+struct MaterialReport {
+    /// Young's modulus, Pa: `e_over_rho` times the assumed density.
+    youngs_modulus_pa: f64,
+    /// The assumed density (frequencies give only `E/rho`): the nearest preset's.
+    density_kg_m3: f64,
+    poisson_ratio: f64,
+    e_over_rho: f64,
+    /// The preset nearest the fit, whose density is assumed.
+    nearest_preset: String,
+    /// One standard deviation of `E/rho` (relative) and Poisson's ratio.
+    uncertainty: Uncertainty,
+    matched_modes: usize,
+    rms_cents: f64,
+    solves: usize,
+}
+
+#[derive(Serialize)]
+struct Uncertainty {
+    e_over_rho_relative: f64,
+    poisson_ratio: f64,
 }
 
 /// Runs `modalforge analyze`.
@@ -32,8 +79,17 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         ..AnalysisOptions::default()
     };
     let found = analysis::extract(&samples, rate, &options)?;
+    let material = if args.fit_material {
+        Some(fit(&found, &args.object)?)
+    } else {
+        None
+    };
     if args.json {
-        return Ok(serde_json::to_string_pretty(&found).expect("the analysis serialises"));
+        let report = Report {
+            analysis: &found,
+            material,
+        };
+        return Ok(serde_json::to_string_pretty(&report).expect("the analysis serialises"));
     }
     let mut out = format!(
         "{} modes; onset {:.4} s, residual {:.1} dB, noise floor {:.1} dB (re peak)\n{:>12} {:>12} {:>12} {:>8}\n",
@@ -66,5 +122,75 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
             100.0 * law.rms_relative_error
         ));
     }
+    if let Some(m) = material {
+        out.push_str(&format!(
+            "material: E/rho {:.4e} m^2/s^2 (+-{:.2} %), Poisson's ratio {:.3} (+-{:.3}); \
+             nearest preset {} ({:.0} kg/m^3 -> E {:.3e} Pa); {} modes matched, {:.1} cents \
+             RMS, {} solves\n",
+            m.e_over_rho,
+            100.0 * m.uncertainty.e_over_rho_relative,
+            m.poisson_ratio,
+            m.uncertainty.poisson_ratio,
+            m.nearest_preset,
+            m.density_kg_m3,
+            m.youngs_modulus_pa,
+            m.matched_modes,
+            m.rms_cents,
+            m.solves
+        ));
+    }
     Ok(out)
+}
+
+/// Fits the object's material to the analysed modes, from `--material` as the start.
+fn fit(found: &Analysis, object_args: &ObjectArgs) -> Result<MaterialReport, CliError> {
+    let object = Object::from_args(object_args, None)?;
+    if object.neural {
+        return Err(CliError::Option(
+            "--fit-material solves the object by FEM: drop --solver neural".into(),
+        ));
+    }
+    let hit = object.hit(object_args)?;
+    let start = &object.material;
+    let fit = material_fit::fit_material(
+        &object.grid,
+        object.grid.voxel_size_m(),
+        &hit,
+        &found.modes,
+        &MaterialFitOptions {
+            element: object.element,
+            start_e_over_rho: start.youngs_modulus_pa / start.density_kg_m3,
+            ..MaterialFitOptions::default()
+        },
+    )?;
+    let nearest = nearest_preset(&fit);
+    Ok(MaterialReport {
+        youngs_modulus_pa: fit.e_over_rho * nearest.density_kg_m3,
+        density_kg_m3: nearest.density_kg_m3,
+        poisson_ratio: fit.poisson_ratio,
+        e_over_rho: fit.e_over_rho,
+        nearest_preset: nearest.name,
+        uncertainty: Uncertainty {
+            e_over_rho_relative: fit.e_over_rho_rel_sigma,
+            poisson_ratio: fit.poisson_sigma,
+        },
+        matched_modes: fit.matched,
+        rms_cents: fit.rms_cents,
+        solves: fit.solves,
+    })
+}
+
+/// The material preset nearest a fit: in `ln(E/rho)` (a 10 % step) and Poisson's ratio (a
+/// 0.05 step) counted alike.
+fn nearest_preset(fit: &MaterialFit) -> Material {
+    let distance = |m: &Material| {
+        let de = ((m.youngs_modulus_pa / m.density_kg_m3) / fit.e_over_rho).ln() / 0.1;
+        let dnu = (m.poisson_ratio - fit.poisson_ratio) / 0.05;
+        de * de + dnu * dnu
+    };
+    material::preset_names()
+        .into_iter()
+        .filter_map(|name| Material::preset(name).ok())
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+        .expect("the presets are built in")
 }

@@ -407,9 +407,9 @@ impl Object {
         }
     }
 
-    /// The strike from `--hit` / `--force`.
-    pub fn hit(&self, basis: &ModeBasis, args: &ObjectArgs) -> Result<Hit, ObjectError> {
-        let mut hit = basis.default_hit(self.grid.voxel_size_m());
+    /// The strike from `--hit` / `--force` (default: [`Hit::default_for`] the object's grid).
+    pub fn hit(&self, args: &ObjectArgs) -> Result<Hit, ObjectError> {
+        let mut hit = Hit::default_for(self.grid.dims(), self.grid.voxel_size_m());
         if let Some(h) = &args.hit {
             hit.point_m = vec3("--hit", h)?;
         }
