@@ -18,14 +18,18 @@
 //! Given the struck object's shape, size and hit, [`material_fit`] then finds its material's
 //! `E/rho` and Poisson's ratio from the modes.
 //!
+//! [`resynth`] plays the modes back through the oscillator bank and measures how far that
+//! sounds from the recording.
+//!
 //! Not yet built (issue 14): the second extraction method (iterative spectrogram peak picking,
-//! Sterling and Lin 2016), resynthesis with a spectral refinement, and the plugin's "match a
-//! recording".
+//! Sterling and Lin 2016), the spectral refinement of the resynthesis, and the plugin's
+//! "match a recording".
 
 pub mod bands;
 pub mod damping_fit;
 pub mod material_fit;
 pub mod pencil;
+pub mod resynth;
 pub mod synthetic;
 pub mod wav;
 
@@ -130,6 +134,10 @@ const DYNAMIC_RANGE_DB: f64 = 70.0;
 /// Modes reported must stand this many dB above the noise at the onset.
 const MIN_SNR_DB: f64 = 6.0;
 
+/// Largest amplitude at the onset a reported mode may have, relative to the recording's
+/// peak: modes that cancel at the onset can each exceed the peak a little, never by this.
+const MAX_GAIN_OVER_PEAK: f64 = 2.0;
+
 /// The modes of a recorded strike (module docs).
 pub fn extract(
     samples: &[f64],
@@ -180,7 +188,15 @@ pub fn extract(
                 let snr = 20.0 * (t.amplitude.norm() / noise_rms.max(1e-300)).log10();
                 let inside = m.freq_hz >= w[0] && m.freq_hz < w[1];
                 let decays = decay_window(m.freq_hz, level);
-                if inside && snr >= MIN_SNR_DB && (decays.0..decays.1).contains(&m.decay_per_s) {
+                // A mode louder at the onset than the recording ever gets is a fast decay seen
+                // late in a wide band and extrapolated back (real recordings have them:
+                // a 0.4 s bell gave a 200 Hz "mode" at 290x its peak); never a mode.
+                let plausible = m.gain <= MAX_GAIN_OVER_PEAK * peak;
+                if inside
+                    && plausible
+                    && snr >= MIN_SNR_DB
+                    && (decays.0..decays.1).contains(&m.decay_per_s)
+                {
                     modes.push(m);
                 }
             }

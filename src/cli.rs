@@ -208,6 +208,9 @@ pub enum CliError {
     /// Fitting a material to a recording.
     #[error(transparent)]
     MaterialFit(#[from] modalforge::analysis::material_fit::MaterialFitError),
+    /// Playing the modes found in a recording.
+    #[error(transparent)]
+    Resynth(#[from] modalforge::analysis::resynth::ResynthError),
 }
 
 fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {

@@ -29,6 +29,10 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u32).range(1..=4000))]
     pub max_modes: u32,
+    /// Write the resynthesis (the modes through the oscillator bank, from the onset; 32-bit
+    /// float at the recording's rate and length) to this WAV.
+    #[arg(long, value_name = "OUT.wav")]
+    pub resynth: Option<PathBuf>,
     /// Fit E/rho and Poisson's ratio of the struck object (its --shape, --size, --hit, as it
     /// was struck; --material is the starting guess, and may be 16x off) to the recording.
     #[arg(long, requires = "shape")]
@@ -43,8 +47,19 @@ pub struct AnalyzeArgs {
 struct Report<'a> {
     #[serde(flatten)]
     analysis: &'a Analysis,
+    resynthesis: Resynthesis,
     #[serde(skip_serializing_if = "Option::is_none")]
     material: Option<MaterialReport>,
+}
+
+/// How the modes sound against the recording (log-mel distance, dB; `analysis::resynth`).
+#[derive(Serialize)]
+struct Resynthesis {
+    /// Every reported mode.
+    log_mel_db: f64,
+    /// Only the loudest `baseline_modes`.
+    baseline_log_mel_db: f64,
+    baseline_modes: usize,
 }
 
 /// The fitted material as `analyze --json` reports it.
@@ -79,6 +94,10 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         ..AnalysisOptions::default()
     };
     let found = analysis::extract(&samples, rate, &options)?;
+    let (resynthesis, played) = resynthesise(&samples, rate, &found)?;
+    if let Some(path) = &args.resynth {
+        write_wav(path, rate, &played)?;
+    }
     let material = if args.fit_material {
         Some(fit(&found, &args.object)?)
     } else {
@@ -87,6 +106,7 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
     if args.json {
         let report = Report {
             analysis: &found,
+            resynthesis,
             material,
         };
         return Ok(serde_json::to_string_pretty(&report).expect("the analysis serialises"));
@@ -122,6 +142,10 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
             100.0 * law.rms_relative_error
         ));
     }
+    out.push_str(&format!(
+        "resynthesis: log-mel distance {:.2} dB ({} loudest modes only: {:.2} dB)\n",
+        resynthesis.log_mel_db, resynthesis.baseline_modes, resynthesis.baseline_log_mel_db
+    ));
     if let Some(m) = material {
         out.push_str(&format!(
             "material: E/rho {:.4e} m^2/s^2 (+-{:.2} %), Poisson's ratio {:.3} (+-{:.3}); \
@@ -140,6 +164,58 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         ));
     }
     Ok(out)
+}
+
+/// The resynthesis of every mode, and the distances of it and of the baseline from the
+/// recording.
+fn resynthesise(
+    samples: &[f64],
+    rate: f64,
+    found: &Analysis,
+) -> Result<(Resynthesis, Vec<f64>), CliError> {
+    use analysis::resynth;
+    let mean = samples.iter().sum::<f64>() / samples.len() as f64;
+    let recording: Vec<f64> = samples.iter().map(|v| v - mean).collect();
+    let start = (found.onset_s * rate).round() as usize;
+    let played = resynth::render(&found.modes, rate, found.onset_s, samples.len())?;
+    let baseline = resynth::render(
+        &resynth::baseline(&found.modes),
+        rate,
+        found.onset_s,
+        samples.len(),
+    )?;
+    Ok((
+        Resynthesis {
+            log_mel_db: resynth::log_mel_distance_db(&recording, &played, rate, start),
+            baseline_log_mel_db: resynth::log_mel_distance_db(&recording, &baseline, rate, start),
+            baseline_modes: resynth::BASELINE_MODES,
+        },
+        played,
+    ))
+}
+
+/// Writes `samples` as a mono 32-bit float WAV.
+fn write_wav(path: &std::path::Path, rate: f64, samples: &[f64]) -> Result<(), CliError> {
+    let io = |source: std::io::Error| CliError::Io {
+        action: "write",
+        path: path.to_path_buf(),
+        source,
+    };
+    let hound_io = |e: hound::Error| match e {
+        hound::Error::IoError(source) => io(source),
+        other => io(std::io::Error::other(other.to_string())),
+    };
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate.round() as u32,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).map_err(hound_io)?;
+    for &v in samples {
+        w.write_sample(v as f32).map_err(hound_io)?;
+    }
+    w.finalize().map_err(hound_io)
 }
 
 /// Fits the object's material to the analysed modes, from `--material` as the start.
