@@ -6,14 +6,33 @@
 //! ([`modalforge::analysis::synthetic`]): the share of resolvable modes 20 dB above the noise
 //! found to 0.1 % in frequency, the worst decay and amplitude errors among them, the share of
 //! spurious modes; then the median time of `extract` on a 3 s, 48 kHz strike of 60 modes.
+//! Both methods ([`Method`]) in turn; `-- --method NAME` runs one.
 
 use modalforge::analysis::synthetic::{case, score, Score};
-use modalforge::analysis::{extract, AnalysisOptions};
+use modalforge::analysis::{extract, AnalysisOptions, Method};
 use std::time::Instant;
 
 fn main() {
     faer::set_global_parallelism(faer::Par::Seq);
-    let options = AnalysisOptions::default();
+    let args: Vec<String> = std::env::args().collect();
+    let only = args
+        .iter()
+        .position(|a| a == "--method")
+        .and_then(|i| args.get(i + 1));
+    for method in [Method::Pencil, Method::Peaks] {
+        if only.is_some_and(|m| *m != method.to_string()) {
+            continue;
+        }
+        println!("method: {method}");
+        run(AnalysisOptions {
+            method,
+            ..AnalysisOptions::default()
+        });
+    }
+}
+
+/// The figures for one method.
+fn run(options: AnalysisOptions) {
     let mut total = Score::default();
     let mut times = Vec::new();
     for seed in 0..100u64 {

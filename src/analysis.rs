@@ -21,13 +21,18 @@
 //! [`resynth`] plays the modes back through the oscillator bank and measures how far that
 //! sounds from the recording.
 //!
-//! Not yet built (issue 14): the second extraction method (iterative spectrogram peak picking,
-//! Sterling and Lin 2016), the spectral refinement of the resynthesis, and the plugin's
+//! A second method, iterative spectral peak picking with subtraction ([`peaks`], Sterling and
+//! Lin 2016), is one option away ([`Method`]); the pencil is the default, the more accurate
+//! on strikes with known modes (ARCHITECTURE.md, "Recording analysis decisions").
+//!
+//! Not yet built (issue 14): the spectral refinement of the resynthesis, and the plugin's
 //! "match a recording".
 
 pub mod bands;
 pub mod damping_fit;
+pub mod fft;
 pub mod material_fit;
+pub mod peaks;
 pub mod pencil;
 pub mod resynth;
 pub mod synthetic;
@@ -64,9 +69,28 @@ pub struct Analysis {
     pub damping: damping_fit::DampingFits,
 }
 
+/// How [`extract`] finds the modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Band-split matrix pencil (a subspace method; resolves pairs 2 Hz apart): the default,
+    /// the better of the two on the synthetic strikes and the real recordings (ARCHITECTURE.md).
+    #[default]
+    Pencil,
+    /// Iterative spectral peak picking with local fits and subtraction (Sterling and Lin 2016).
+    Peaks,
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        crate::cli_name(self, f)
+    }
+}
+
 /// Settings of [`extract`].
 #[derive(Clone, Copy, Debug)]
 pub struct AnalysisOptions {
+    /// Which method finds the modes.
+    pub method: Method,
     /// Most modes reported (the loudest at the onset).
     pub max_modes: usize,
     /// Lowest frequency analysed, Hz.
@@ -78,6 +102,7 @@ pub struct AnalysisOptions {
 impl Default for AnalysisOptions {
     fn default() -> Self {
         AnalysisOptions {
+            method: Method::Pencil,
             max_modes: 200,
             low_hz: 40.0,
             high_hz: 20_000.0,
@@ -164,14 +189,69 @@ pub fn extract(
     let start = onset(&x, fs);
     let onset_s = start as f64 / fs;
     let high = options.high_hz.min(0.45 * fs);
+    let (mut modes, noise_rms) = match options.method {
+        Method::Pencil => pencil_modes(&x, fs, start, (options.low_hz, high), peak),
+        Method::Peaks => {
+            let noise_rms = noise_before(&x, start, fs);
+            let modes = peaks::peaks(
+                &x,
+                fs,
+                start,
+                (options.low_hz, high),
+                noise_rms,
+                options.max_modes,
+            );
+            (modes, noise_rms)
+        }
+    };
+    modes.retain(|m| m.gain <= MAX_GAIN_OVER_PEAK * peak);
+    // A mode whose decay rate lies at a boundary of two levels' windows can be taken from
+    // both (their estimates fall on either side of it): kept once.
+    modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    modes.dedup_by(|b, a| {
+        (b.freq_hz - a.freq_hz).abs() < 1e-4 * a.freq_hz
+            && (b.decay_per_s - a.decay_per_s).abs() < 0.1 * a.decay_per_s
+    });
+    // Below the loudest mode by more than the band filters reject, a "mode" may be a strong
+    // neighbour's leakage.
+    let loudest = modes.iter().map(|m| m.gain).fold(0.0, f64::max);
+    modes.retain(|m| m.gain >= loudest * 10f64.powf(-DYNAMIC_RANGE_DB / 20.0));
+    modes.sort_by(|a, b| b.gain.total_cmp(&a.gain));
+    modes.truncate(options.max_modes);
+    modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    let residual_db = residual_db(&x[start..], fs, &modes);
+    let damping = damping_fit::fit(
+        &modes
+            .iter()
+            .map(|m| (m.freq_hz, m.decay_per_s))
+            .collect::<Vec<_>>(),
+    );
+    Ok(Analysis {
+        damping,
+        modes,
+        onset_s,
+        residual_db,
+        noise_floor_db: 20.0 * (noise_rms.max(1e-300) / peak).log10(),
+    })
+}
+
+/// The band-split matrix pencil's modes (module docs), and the noise's RMS per sample (the
+/// median over the finest bands).
+fn pencil_modes(
+    x: &[f64],
+    fs: f64,
+    start: usize,
+    (low_hz, high_hz): (f64, f64),
+    peak: f64,
+) -> (Vec<ExtractedMode>, f64) {
     let mut modes = Vec::new();
     let mut noise = Vec::new();
     for level in 0..LEVELS {
         let scale = LEVEL_FACTOR.powi(level as i32);
         let widths = (BAND_WIDTH_HZ.0 * scale, BAND_WIDTH_HZ.1 * scale);
-        let edges = bands::edges(options.low_hz, high, BAND_RELATIVE_WIDTH * scale, widths);
+        let edges = bands::edges(low_hz, high_hz, BAND_RELATIVE_WIDTH * scale, widths);
         for w in edges.windows(2) {
-            let band = bands::band(&x, fs, start, w[0], w[1]);
+            let band = bands::band(x, fs, start, w[0], w[1]);
             let Some((terms, noise_rms)) = pencil::pencil(&band.samples, MAX_POLES_PER_BAND) else {
                 continue;
             };
@@ -202,36 +282,21 @@ pub fn extract(
             }
         }
     }
-    // A mode whose decay rate lies at a boundary of two levels' windows can be taken from
-    // both (their estimates fall on either side of it): kept once.
-    modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    modes.dedup_by(|b, a| {
-        (b.freq_hz - a.freq_hz).abs() < 1e-4 * a.freq_hz
-            && (b.decay_per_s - a.decay_per_s).abs() < 0.1 * a.decay_per_s
-    });
-    // Below the loudest mode by more than the band filters reject, a "mode" may be a strong
-    // neighbour's leakage.
-    let loudest = modes.iter().map(|m| m.gain).fold(0.0, f64::max);
-    modes.retain(|m| m.gain >= loudest * 10f64.powf(-DYNAMIC_RANGE_DB / 20.0));
-    modes.sort_by(|a, b| b.gain.total_cmp(&a.gain));
-    modes.truncate(options.max_modes);
-    modes.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     noise.sort_by(f64::total_cmp);
-    let noise_rms = noise.get(noise.len() / 2).copied().unwrap_or(0.0);
-    let residual_db = residual_db(&x[start..], fs, &modes);
-    let damping = damping_fit::fit(
-        &modes
-            .iter()
-            .map(|m| (m.freq_hz, m.decay_per_s))
-            .collect::<Vec<_>>(),
-    );
-    Ok(Analysis {
-        damping,
-        modes,
-        onset_s,
-        residual_db,
-        noise_floor_db: 20.0 * (noise_rms.max(1e-300) / peak).log10(),
-    })
+    (modes, noise.get(noise.len() / 2).copied().unwrap_or(0.0))
+}
+
+/// The noise's RMS per sample for the peak picker: the quietest of the lead-in before the
+/// onset and the recording's last 20 ms (where the strike has died, or mostly).
+fn noise_before(x: &[f64], start: usize, fs: f64) -> f64 {
+    let rms = |s: &[f64]| (s.iter().map(|v| v * v).sum::<f64>() / s.len().max(1) as f64).sqrt();
+    let tail = &x[x.len().saturating_sub((0.02 * fs) as usize)..];
+    let lead = &x[..start.saturating_sub((0.001 * fs) as usize)];
+    if lead.len() >= 64 {
+        rms(lead).min(rms(tail))
+    } else {
+        rms(tail)
+    }
 }
 
 /// The decay rates level `level` answers for at `freq_hz`: from where the level below (bands

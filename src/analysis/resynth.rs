@@ -13,15 +13,15 @@
 //! recording's noise floor included, does not count), and the distance is the mean absolute
 //! difference over every frame and band from the onset on.
 //!
-//! The FFT is a radix-2 one written here (40 lines): an FFT crate would add its build to every
-//! clean build of the test suite, which is at its time budget, for one non-real-time use.
+//! The FFT is [`super::fft`]'s.
 
+use super::fft::fft;
 use super::ExtractedMode;
 use crate::modes::{CullSettings, ModeError, ModeSet};
 use crate::synth::render::{render as render_bank, BankKind, Performance, RenderError};
 use crate::synth::Excitation;
 use faer::c64;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::TAU;
 
 /// Modes the baseline keeps (the loudest at the onset).
 pub const BASELINE_MODES: usize = 5;
@@ -181,58 +181,10 @@ fn mel_bank(fs: f64) -> Vec<Vec<(usize, f64)>> {
         .collect()
 }
 
-/// In-place iterative radix-2 FFT (`x.len()` a power of two): `X_k = sum_n x_n e^(-2 pi i kn/N)`.
-fn fft(x: &mut [c64]) {
-    let n = x.len();
-    debug_assert!(n.is_power_of_two());
-    let bits = n.trailing_zeros();
-    for i in 0..n {
-        let j = i.reverse_bits() >> (usize::BITS - bits);
-        if i < j {
-            x.swap(i, j);
-        }
-    }
-    let mut len = 2;
-    while len <= n {
-        let step = c64::from_polar(1.0, -2.0 * PI / len as f64);
-        for chunk in x.chunks_mut(len) {
-            let mut w = c64::new(1.0, 0.0);
-            let (lo, hi) = chunk.split_at_mut(len / 2);
-            for (a, b) in lo.iter_mut().zip(hi.iter_mut()) {
-                let t = *b * w;
-                *b = *a - t;
-                *a += t;
-                w *= step;
-            }
-        }
-        len *= 2;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The FFT against the DFT's definition on a random vector (rounding grows like
-    /// `eps log2 N`; 1e-9 of the norm is far above it and far below any indexing error).
-    #[test]
-    fn fft_matches_the_dft() {
-        let n = 64;
-        let mut rng = crate::rng::SplitMix64::new(3);
-        let x: Vec<c64> = (0..n)
-            .map(|_| c64::new(rng.unit() - 0.5, rng.unit() - 0.5))
-            .collect();
-        let mut y = x.clone();
-        fft(&mut y);
-        for (k, yk) in y.iter().enumerate() {
-            let want: c64 = x
-                .iter()
-                .enumerate()
-                .map(|(j, &v)| v * c64::from_polar(1.0, -TAU * (j * k) as f64 / n as f64))
-                .sum();
-            assert!((yk - want).norm() < 1e-9, "bin {k}: {yk} vs {want}");
-        }
-    }
+    use std::f64::consts::PI;
 
     /// The distance is 0 for a signal against itself, 6.02 dB for white noise against a copy
     /// at twice the amplitude (every band is above the floor and 20 log10 2 up), and the

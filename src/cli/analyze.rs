@@ -25,6 +25,9 @@ pub struct AnalyzeArgs {
     /// `render --modes`.
     #[arg(long)]
     pub json: bool,
+    /// How the modes are found.
+    #[arg(long, value_name = "NAME", value_enum, default_value_t = analysis::Method::Pencil)]
+    pub method: analysis::Method,
     /// Most modes reported (the loudest at the onset).
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u32).range(1..=4000))]
@@ -90,6 +93,7 @@ struct Uncertainty {
 pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
     let (samples, rate) = analysis::wav::read_mono(&args.recording)?;
     let options = AnalysisOptions {
+        method: args.method,
         max_modes: args.max_modes as usize,
         ..AnalysisOptions::default()
     };
