@@ -70,7 +70,8 @@ pub struct MaterialFit {
     pub poisson_ratio: f64,
     /// One standard deviation of `E/rho`, relative.
     pub e_over_rho_rel_sigma: f64,
-    /// One standard deviation of Poisson's ratio.
+    /// One standard deviation of Poisson's ratio; infinite where fewer than [`MIN_MODES`]
+    /// recorded modes matched (then only `E/rho` is fitted).
     pub poisson_sigma: f64,
     /// Recorded modes matched to model modes in the final fit.
     pub matched: usize,
@@ -269,7 +270,7 @@ pub fn fit_material(
     for _ in 0..MAX_ITERATIONS {
         let pairs = matches(&points, &model.spectrum, s);
         if pairs.len() < MIN_MODES {
-            return Err(no_match());
+            break;
         }
         let step = gauss_newton(&points, &model, &pairs, s);
         s += step.ds;
@@ -281,17 +282,25 @@ pub fn fit_material(
     }
     // The final estimate at the final model: s re-centred, residuals and covariance there.
     let pairs = matches(&points, &model.spectrum, s);
-    if pairs.len() < MIN_MODES {
+    if pairs.is_empty() {
         return Err(no_match());
     }
     let last = gauss_newton(&points, &model, &pairs, s);
     s += last.ds_only;
     let rms = weighted_rms(&points, &model.spectrum, &pairs, s);
+    // With fewer matched pairs than parameters and a residual, Poisson's ratio stays where
+    // the first stage put it and is not determined (an infinite sigma; JSON null); E/rho's
+    // sigma is then the matched modes' spread, at least the trimmed loss's cap.
+    let (sigma_s, sigma_nu) = if pairs.len() >= MIN_MODES {
+        (last.sigma_s, last.sigma_nu)
+    } else {
+        (rms.max(TRIM), f64::INFINITY)
+    };
     Ok(MaterialFit {
         e_over_rho: (2.0 * s).exp(),
         poisson_ratio: model.poisson,
-        e_over_rho_rel_sigma: 2.0 * last.sigma_s,
-        poisson_sigma: last.sigma_nu,
+        e_over_rho_rel_sigma: 2.0 * sigma_s,
+        poisson_sigma: sigma_nu,
         matched: pairs.len(),
         rms_cents: rms * 1200.0 / std::f64::consts::LN_2,
         solves,
