@@ -25,8 +25,9 @@
 //! Lin 2016), is one option away ([`Method`]); the pencil is the default, the more accurate
 //! on strikes with known modes (ARCHITECTURE.md, "Recording analysis decisions").
 //!
-//! Not yet built (issue 14): the spectral refinement of the resynthesis, and the plugin's
-//! "match a recording".
+//! [`refine`] then optionally moves the modes to fit the recording's spectrum more closely.
+//!
+//! Not yet built (issue 14): the plugin's "match a recording".
 
 pub mod bands;
 pub mod damping_fit;
@@ -34,6 +35,7 @@ pub mod fft;
 pub mod material_fit;
 pub mod peaks;
 pub mod pencil;
+pub mod refine;
 pub mod resynth;
 pub mod synthetic;
 pub mod wav;

@@ -451,3 +451,32 @@ fn real_recordings_resynthesise_closer_than_five_modes() {
     }
     eprintln!("{}", lines.join("\n"));
 }
+
+/// The spectral refinement (`analysis::refine`, `analyze --refine`) on a real recording (the
+/// cowbell, the shortest clip): its log-mel distance from the recording falls by at least a
+/// fifth (measured 3.04 -> 2.03 dB) and the spectral loss it minimises falls. The other
+/// recordings (seconds each) are measured with `modalforge analyze REC.wav --refine`.
+#[test]
+fn refinement_brings_a_real_recording_closer() {
+    use modalforge::analysis::{refine, resynth, wav};
+    faer::set_global_parallelism(faer::Par::Seq);
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/recordings/cowbell.wav");
+    let (x, fs) = wav::read_mono(&path).unwrap();
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let recording: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let found = extract(&x, fs, &AnalysisOptions::default()).unwrap();
+    let start = (found.onset_s * fs).round() as usize;
+    let distance = |modes: &[modalforge::analysis::ExtractedMode]| {
+        let played = resynth::render(modes, fs, found.onset_s, x.len()).unwrap();
+        resynth::log_mel_distance_db(&recording, &played, fs, start)
+    };
+    let refined = refine::refine(&recording, fs, start, &found.modes);
+    let (before, after) = (distance(&found.modes), distance(&refined.modes));
+    eprintln!(
+        "cowbell: log-mel {before:.2} -> {after:.2} dB, loss {:.4} -> {:.4}",
+        refined.loss_before, refined.loss_after
+    );
+    assert!(refined.loss_after < refined.loss_before);
+    assert!(after <= 0.8 * before, "{before} -> {after}");
+}

@@ -36,6 +36,10 @@ pub struct AnalyzeArgs {
     /// float at the recording's rate and length) to this WAV.
     #[arg(long, value_name = "OUT.wav")]
     pub resynth: Option<PathBuf>,
+    /// Refine the modes against the recording (frequencies, decays, amplitudes, phases) by a
+    /// multi-resolution spectral loss before reporting them (seconds per recording).
+    #[arg(long)]
+    pub refine: bool,
     /// Fit E/rho and Poisson's ratio of the struck object (its --shape, --size, --hit, as it
     /// was struck; --material is the starting guess, and may be 16x off) to the recording.
     #[arg(long, requires = "shape")]
@@ -52,7 +56,16 @@ struct Report<'a> {
     analysis: &'a Analysis,
     resynthesis: Resynthesis,
     #[serde(skip_serializing_if = "Option::is_none")]
+    refinement: Option<Refinement>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     material: Option<MaterialReport>,
+}
+
+/// The spectral loss before and after `--refine` (`analysis::refine`).
+#[derive(Serialize)]
+struct Refinement {
+    loss_before: f64,
+    loss_after: f64,
 }
 
 /// How the modes sound against the recording (log-mel distance, dB; `analysis::resynth`).
@@ -97,7 +110,18 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         max_modes: args.max_modes as usize,
         ..AnalysisOptions::default()
     };
-    let found = analysis::extract(&samples, rate, &options)?;
+    let mut found = analysis::extract(&samples, rate, &options)?;
+    let refinement = args.refine.then(|| {
+        let mean = samples.iter().sum::<f64>() / samples.len() as f64;
+        let centred: Vec<f64> = samples.iter().map(|v| v - mean).collect();
+        let start = (found.onset_s * rate).round() as usize;
+        let refined = analysis::refine::refine(&centred, rate, start, &found.modes);
+        found.modes = refined.modes;
+        Refinement {
+            loss_before: refined.loss_before,
+            loss_after: refined.loss_after,
+        }
+    });
     let (resynthesis, played) = resynthesise(&samples, rate, &found)?;
     if let Some(path) = &args.resynth {
         write_wav(path, rate, &played)?;
@@ -111,6 +135,7 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         let report = Report {
             analysis: &found,
             resynthesis,
+            refinement,
             material,
         };
         return Ok(serde_json::to_string_pretty(&report).expect("the analysis serialises"));
@@ -150,6 +175,12 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         "resynthesis: log-mel distance {:.2} dB ({} loudest modes only: {:.2} dB)\n",
         resynthesis.log_mel_db, resynthesis.baseline_modes, resynthesis.baseline_log_mel_db
     ));
+    if let Some(r) = &refinement {
+        out.push_str(&format!(
+            "refined: spectral loss {:.4} -> {:.4}\n",
+            r.loss_before, r.loss_after
+        ));
+    }
     if let Some(m) = material {
         out.push_str(&format!(
             "material: E/rho {:.4e} m^2/s^2 (+-{:.2} %), Poisson's ratio {:.3} (+-{:.3}); \
