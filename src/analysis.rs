@@ -27,7 +27,9 @@
 //!
 //! [`refine`] then optionally moves the modes to fit the recording's spectrum more closely.
 //!
-//! Not yet built (issue 14): the plugin's "match a recording".
+//! The plugin's "Match recording" uses the same steps (`plugin/src/editor/matching.rs`).
+//!
+//! Not yet built (issue 14): playing a recording's modes in the plugin as the object.
 
 pub mod bands;
 pub mod damping_fit;

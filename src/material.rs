@@ -26,7 +26,7 @@
 pub mod damping;
 
 pub use damping::{DampedMode, Damping, DampingLaw};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// A material: elastic constants and damping.
 #[derive(Clone, Debug)]
@@ -91,7 +91,7 @@ pub enum MaterialError {
     },
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct MaterialFile {
     name: String,
@@ -100,25 +100,28 @@ struct MaterialFile {
     density_kg_m3: f64,
     poisson_ratio: f64,
     damping: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
     rayleigh: Option<RayleighToml>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     caughey: Option<CaugheyToml>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     power_law: Option<PowerToml>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct RayleighToml {
     alpha1: f64,
     alpha2: f64,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct CaugheyToml {
     eta: Vec<f64>,
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 struct PowerToml {
     mu1: f64,
@@ -207,6 +210,47 @@ impl Material {
             }
         }
         Ok(())
+    }
+
+    /// The material as a TOML file [`Material::from_toml`] reads back (every damping model it
+    /// holds, the one in use named); `None` when the damping in use is a custom function,
+    /// which a file cannot hold.
+    pub fn to_toml(&self) -> Option<String> {
+        let mut file = MaterialFile {
+            name: self.name.clone(),
+            source: self.source.clone(),
+            youngs_modulus_pa: self.youngs_modulus_pa,
+            density_kg_m3: self.density_kg_m3,
+            poisson_ratio: self.poisson_ratio,
+            damping: self.damping.law()?.to_string(),
+            rayleigh: None,
+            caughey: None,
+            power_law: None,
+        };
+        let models = self
+            .damping_models
+            .iter()
+            .map(|(_, d)| d)
+            .chain(std::iter::once(&self.damping));
+        for d in models {
+            match d {
+                Damping::Rayleigh { alpha1, alpha2 } => {
+                    file.rayleigh = Some(RayleighToml {
+                        alpha1: *alpha1,
+                        alpha2: *alpha2,
+                    })
+                }
+                Damping::Caughey { eta } => file.caughey = Some(CaugheyToml { eta: eta.clone() }),
+                Damping::PowerLaw { mu1, mu2 } => {
+                    file.power_law = Some(PowerToml {
+                        mu1: *mu1,
+                        mu2: *mu2,
+                    })
+                }
+                Damping::Custom(_) => {}
+            }
+        }
+        Some(toml::to_string(&file).expect("a material serialises"))
     }
 
     /// Parses a material TOML file (schema in the module docs).
@@ -369,5 +413,32 @@ mod tests {
             assert!(e.contains(needle), "{spec}: {e}");
         }
         assert!(Material::parse("2e11,7850,0.3").is_ok());
+    }
+
+    /// Every preset survives `to_toml` and `from_toml` unchanged: constants, the damping in
+    /// use and every model it offers.
+    #[test]
+    fn materials_round_trip_through_toml() {
+        for name in preset_names() {
+            let m = Material::preset(name).unwrap();
+            let text = m.to_toml().expect("presets use named laws");
+            let back = Material::from_toml(&text, name).unwrap();
+            assert_eq!(back.youngs_modulus_pa, m.youngs_modulus_pa, "{name}");
+            assert_eq!(back.density_kg_m3, m.density_kg_m3, "{name}");
+            assert_eq!(back.poisson_ratio, m.poisson_ratio, "{name}");
+            assert_eq!(back.damping.law(), m.damping.law(), "{name}");
+            for w in [1e3, 1e6, 1e9] {
+                assert_eq!(
+                    back.damping.coefficient(w),
+                    m.damping.coefficient(w),
+                    "{name}"
+                );
+            }
+            assert_eq!(
+                back.damping_models.len(),
+                m.damping_models.len(),
+                "{name}\n{text}"
+            );
+        }
     }
 }

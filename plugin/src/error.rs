@@ -105,4 +105,12 @@ pub enum PluginError {
         /// What went wrong.
         source: std::io::Error,
     },
+    /// A recording that cannot be matched: unreadable, not audio, or nothing to fit.
+    #[error("cannot match {file}: {reason}")]
+    Recording {
+        /// The recording.
+        file: String,
+        /// What went wrong (one line).
+        reason: String,
+    },
 }

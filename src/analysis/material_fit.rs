@@ -307,6 +307,23 @@ pub fn fit_material(
     })
 }
 
+/// The material preset nearest a fit: in `ln(E/rho)` (a 10 % step) and Poisson's ratio (a
+/// 0.05 step) counted alike. Its density is the one to assume, since a recording shows only
+/// `E/rho`.
+pub fn nearest_preset(fit: &MaterialFit) -> crate::material::Material {
+    use crate::material::{self, Material};
+    let distance = |m: &Material| {
+        let de = ((m.youngs_modulus_pa / m.density_kg_m3) / fit.e_over_rho).ln() / 0.1;
+        let dnu = (m.poisson_ratio - fit.poisson_ratio) / 0.05;
+        de * de + dnu * dnu
+    };
+    material::preset_names()
+        .into_iter()
+        .filter_map(|name| Material::preset(name).ok())
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+        .expect("the presets are built in")
+}
+
 /// The usable recorded modes: finite, positive frequency, non-zero amplitude, and resonant
 /// (quality factor `pi f / d` at least [`MIN_QUALITY`]: a strike's click, which extraction
 /// reports as a mode dying within a cycle or two, is not one of the object's); weighted by

@@ -1,5 +1,6 @@
 //! Reading a recording: any WAV hound reads (8-32-bit integer or 32-bit float PCM, any rate,
-//! any channel count), mixed to mono, in full-scale units (`[-1, 1]`).
+//! any channel count), mixed to mono, in full-scale units (`[-1, 1]`); and writing one (a
+//! resynthesis) as mono 32-bit float.
 //!
 //! Where it sits: the first step of `modalforge analyze` ([`super::extract`] takes the samples).
 
@@ -11,6 +12,14 @@ pub enum WavError {
     /// Not a WAV file hound can read (or unreadable).
     #[error("{path}: not a readable WAV file ({source}); give a PCM or float WAV recording")]
     Read {
+        /// The file.
+        path: PathBuf,
+        /// What hound said.
+        source: hound::Error,
+    },
+    /// The file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
         /// The file.
         path: PathBuf,
         /// What hound said.
@@ -82,4 +91,23 @@ pub fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), WavError> {
         .map(|frame| frame.iter().sum::<f64>() / channels as f64)
         .collect();
     Ok((mono, spec.sample_rate as f64))
+}
+
+/// Writes `samples` (full-scale units) to `path` as a mono 32-bit float WAV at `rate_hz`.
+pub fn write_mono(path: &Path, rate_hz: f64, samples: &[f64]) -> Result<(), WavError> {
+    let write = |source| WavError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate_hz.round() as u32,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).map_err(write)?;
+    for &v in samples {
+        w.write_sample(v as f32).map_err(write)?;
+    }
+    w.finalize().map_err(write)
 }

@@ -8,9 +8,8 @@
 
 use super::object::{Object, ObjectArgs};
 use super::CliError;
-use modalforge::analysis::material_fit::{self, MaterialFit, MaterialFitOptions};
+use modalforge::analysis::material_fit::{self, MaterialFitOptions};
 use modalforge::analysis::{self, Analysis, AnalysisOptions};
-use modalforge::material::{self, Material};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -124,7 +123,7 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
     });
     let (resynthesis, played) = resynthesise(&samples, rate, &found)?;
     if let Some(path) = &args.resynth {
-        write_wav(path, rate, &played)?;
+        analysis::wav::write_mono(path, rate, &played)?;
     }
     let material = if args.fit_material {
         Some(fit(&found, &args.object)?)
@@ -229,30 +228,6 @@ fn resynthesise(
     ))
 }
 
-/// Writes `samples` as a mono 32-bit float WAV.
-fn write_wav(path: &std::path::Path, rate: f64, samples: &[f64]) -> Result<(), CliError> {
-    let io = |source: std::io::Error| CliError::Io {
-        action: "write",
-        path: path.to_path_buf(),
-        source,
-    };
-    let hound_io = |e: hound::Error| match e {
-        hound::Error::IoError(source) => io(source),
-        other => io(std::io::Error::other(other.to_string())),
-    };
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate.round() as u32,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).map_err(hound_io)?;
-    for &v in samples {
-        w.write_sample(v as f32).map_err(hound_io)?;
-    }
-    w.finalize().map_err(hound_io)
-}
-
 /// Fits the object's material to the analysed modes, from `--material` as the start.
 fn fit(found: &Analysis, object_args: &ObjectArgs) -> Result<MaterialReport, CliError> {
     let object = Object::from_args(object_args, None)?;
@@ -274,7 +249,7 @@ fn fit(found: &Analysis, object_args: &ObjectArgs) -> Result<MaterialReport, Cli
             ..MaterialFitOptions::default()
         },
     )?;
-    let nearest = nearest_preset(&fit);
+    let nearest = material_fit::nearest_preset(&fit);
     Ok(MaterialReport {
         youngs_modulus_pa: fit.e_over_rho * nearest.density_kg_m3,
         density_kg_m3: nearest.density_kg_m3,
@@ -289,19 +264,4 @@ fn fit(found: &Analysis, object_args: &ObjectArgs) -> Result<MaterialReport, Cli
         rms_cents: fit.rms_cents,
         solves: fit.solves,
     })
-}
-
-/// The material preset nearest a fit: in `ln(E/rho)` (a 10 % step) and Poisson's ratio (a
-/// 0.05 step) counted alike.
-fn nearest_preset(fit: &MaterialFit) -> Material {
-    let distance = |m: &Material| {
-        let de = ((m.youngs_modulus_pa / m.density_kg_m3) / fit.e_over_rho).ln() / 0.1;
-        let dnu = (m.poisson_ratio - fit.poisson_ratio) / 0.05;
-        de * de + dnu * dnu
-    };
-    material::preset_names()
-        .into_iter()
-        .filter_map(|name| Material::preset(name).ok())
-        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
-        .expect("the presets are built in")
 }

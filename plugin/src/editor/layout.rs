@@ -82,6 +82,17 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         if ui.button("Save preset").clicked() {
             app.save_preset();
         }
+        if ui
+            .add_enabled(app.matching.is_none(), egui::Button::new("Match recording"))
+            .on_hover_text(
+                "Fit the material and damping of this object to a WAV of the real one struck \
+                 at the hit point (the file in the field; the result is also saved as \
+                 NAME.material.toml beside it)",
+            )
+            .clicked()
+        {
+            app.start_match();
+        }
     });
     if let Some((m, error)) = &app.message {
         let colour = if *error {
