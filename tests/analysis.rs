@@ -413,8 +413,7 @@ fn real_recordings_resynthesise_closer_than_five_modes() {
     let mut lines = Vec::new();
     for name in ["cowbell", "paiste-bell", "kenkeni-bell", "agogo-high"] {
         let (x, fs) = wav::read_mono(&dir.join(format!("{name}.wav"))).unwrap();
-        let mean = x.iter().sum::<f64>() / x.len() as f64;
-        let recording: Vec<f64> = x.iter().map(|v| v - mean).collect();
+        let recording = modalforge::analysis::centred(&x);
         for method in [Method::Pencil, Method::Peaks] {
             let options = AnalysisOptions {
                 method,
@@ -463,8 +462,7 @@ fn refinement_brings_a_real_recording_closer() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/recordings/cowbell.wav");
     let (x, fs) = wav::read_mono(&path).unwrap();
-    let mean = x.iter().sum::<f64>() / x.len() as f64;
-    let recording: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let recording = modalforge::analysis::centred(&x);
     let found = extract(&x, fs, &AnalysisOptions::default()).unwrap();
     let start = (found.onset_s * fs).round() as usize;
     let distance = |modes: &[modalforge::analysis::ExtractedMode]| {

@@ -110,18 +110,17 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
         ..AnalysisOptions::default()
     };
     let mut found = analysis::extract(&samples, rate, &options)?;
+    let recording = analysis::centred(&samples);
     let refinement = args.refine.then(|| {
-        let mean = samples.iter().sum::<f64>() / samples.len() as f64;
-        let centred: Vec<f64> = samples.iter().map(|v| v - mean).collect();
         let start = (found.onset_s * rate).round() as usize;
-        let refined = analysis::refine::refine(&centred, rate, start, &found.modes);
+        let refined = analysis::refine::refine(&recording, rate, start, &found.modes);
         found.modes = refined.modes;
         Refinement {
             loss_before: refined.loss_before,
             loss_after: refined.loss_after,
         }
     });
-    let (resynthesis, played) = resynthesise(&samples, rate, &found)?;
+    let (resynthesis, played) = resynthesise(&recording, rate, &found)?;
     if let Some(path) = &args.resynth {
         analysis::wav::write_mono(path, rate, &played)?;
     }
@@ -201,27 +200,25 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<String, CliError> {
 }
 
 /// The resynthesis of every mode, and the distances of it and of the baseline from the
-/// recording.
+/// (centred) recording.
 fn resynthesise(
-    samples: &[f64],
+    recording: &[f64],
     rate: f64,
     found: &Analysis,
 ) -> Result<(Resynthesis, Vec<f64>), CliError> {
     use analysis::resynth;
-    let mean = samples.iter().sum::<f64>() / samples.len() as f64;
-    let recording: Vec<f64> = samples.iter().map(|v| v - mean).collect();
     let start = (found.onset_s * rate).round() as usize;
-    let played = resynth::render(&found.modes, rate, found.onset_s, samples.len())?;
+    let played = resynth::render(&found.modes, rate, found.onset_s, recording.len())?;
     let baseline = resynth::render(
         &resynth::baseline(&found.modes),
         rate,
         found.onset_s,
-        samples.len(),
+        recording.len(),
     )?;
     Ok((
         Resynthesis {
-            log_mel_db: resynth::log_mel_distance_db(&recording, &played, rate, start),
-            baseline_log_mel_db: resynth::log_mel_distance_db(&recording, &baseline, rate, start),
+            log_mel_db: resynth::log_mel_distance_db(recording, &played, rate, start),
+            baseline_log_mel_db: resynth::log_mel_distance_db(recording, &baseline, rate, start),
             baseline_modes: resynth::BASELINE_MODES,
         },
         played,
