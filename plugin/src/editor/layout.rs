@@ -104,6 +104,26 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
     }
 }
 
+/// Ctrl+Z (undo) and Ctrl+Shift+Z (redo) pressed this frame, unless a text field has the
+/// keyboard (the file path). The modifiers are read from each key event (egui's
+/// `consume_shortcut`), not from the frame's modifier state: a quick tap releases Ctrl before
+/// the frame that sees the Z, and reading the frame's state missed 3 taps in 5. Redo is
+/// matched first, since the undo shortcut also matches with Shift held.
+fn undo_shortcuts(ui: &mut egui::Ui) -> (bool, bool) {
+    if ui.ctx().egui_wants_keyboard_input() {
+        return (false, false);
+    }
+    use egui::{Key, KeyboardShortcut, Modifiers};
+    ui.input_mut(|i| {
+        let redo = i.consume_shortcut(&KeyboardShortcut::new(
+            Modifiers::COMMAND | Modifiers::SHIFT,
+            Key::Z,
+        ));
+        let undo = i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::Z));
+        (undo, redo)
+    })
+}
+
 pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
     ui.horizontal(|ui| {
         ui.selectable_value(&mut app.tool, Tool::Add, "Add");
@@ -119,18 +139,11 @@ pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
         ui.separator();
         let undo = ui.add_enabled(app.sculptor.undo_depth() > 0, egui::Button::new("Undo"));
         let redo = ui.add_enabled(app.sculptor.redo_depth() > 0, egui::Button::new("Redo"));
-        // Ctrl+Z / Ctrl+Shift+Z, unless a text field has the keyboard (the file path).
-        let typing = ui.ctx().egui_wants_keyboard_input();
-        let (z, shift) = ui.input(|i| {
-            (
-                !typing && i.modifiers.command && i.key_pressed(egui::Key::Z),
-                i.modifiers.shift,
-            )
-        });
-        if undo.clicked() || (z && !shift) {
+        let (undo_key, redo_key) = undo_shortcuts(ui);
+        if undo.clicked() || undo_key {
             app.undo();
         }
-        if redo.clicked() || (z && shift) {
+        if redo.clicked() || redo_key {
             app.redo();
         }
     });

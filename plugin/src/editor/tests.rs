@@ -493,3 +493,52 @@ fn matching_a_recording_gives_back_the_material() {
     assert!(e.starts_with("cannot match") && !e.contains('\n'), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Ctrl+Z through the real sculpting bar (egui run headless): a quick tap whose Ctrl is
+/// already released in the frame's modifier state (only the key event carries it) undoes,
+/// every time; Ctrl+Shift+Z redoes; a plain Z does nothing. Before the fix (modifiers read
+/// from the frame) the tap was ignored, as 3 presses in 5 were by hand.
+#[test]
+fn a_quick_ctrl_z_tap_undoes_every_time() {
+    let mut app = app_with(block([4, 4, 4]));
+    app.camera = front_camera();
+    app.tool = Tool::Add;
+    for _ in 0..3 {
+        app.click([0.0, 0.0]);
+    }
+    assert_eq!(app.sculptor.undo_depth(), 3);
+    let ctx = egui::Context::default();
+    let frame = |modifiers: egui::Modifiers, app: &mut EditorApp| {
+        // Modifiers down, Z with them, modifiers up, all within one frame: the frame's own
+        // modifier state ends with nothing held.
+        let input = egui::RawInput {
+            events: vec![
+                egui::Event::ModifiersChanged(modifiers),
+                egui::Event::Key {
+                    key: egui::Key::Z,
+                    physical_key: None,
+                    pressed: true,
+                    repeat: false,
+                    modifiers,
+                },
+                egui::Event::ModifiersChanged(egui::Modifiers::NONE),
+            ],
+            ..Default::default()
+        };
+        let _ = ctx.run_ui(input, |ui| super::layout::sculpt_bar(app, ui));
+    };
+    for left in [2, 1, 0] {
+        frame(egui::Modifiers::COMMAND, &mut app);
+        assert_eq!(app.sculptor.undo_depth(), left);
+    }
+    frame(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, &mut app);
+    assert_eq!(
+        (app.sculptor.undo_depth(), app.sculptor.redo_depth()),
+        (1, 2)
+    );
+    frame(egui::Modifiers::NONE, &mut app);
+    assert_eq!(
+        (app.sculptor.undo_depth(), app.sculptor.redo_depth()),
+        (1, 2)
+    );
+}
