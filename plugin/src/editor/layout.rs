@@ -43,7 +43,7 @@ fn slider<P: Param>(ui: &mut egui::Ui, label: &str, param: &P, setter: &ParamSet
 }
 
 pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         ui.strong("ModalForge");
         ui.separator();
         let mut chosen = None;
@@ -94,14 +94,15 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
             app.start_match();
         }
     });
-    if let Some((m, error)) = &app.message {
-        let colour = if *error {
-            Color32::from_rgb(240, 110, 90)
-        } else {
-            Color32::from_gray(180)
-        };
-        ui.colored_label(colour, m);
-    }
+    // The message has a line of its own, there whether or not a message is showing, so
+    // nothing below the bar moves when one appears or clears.
+    let (text, colour) = match &app.message {
+        Some((m, true)) => (m.as_str(), Color32::from_rgb(240, 110, 90)),
+        Some((m, false)) => (m.as_str(), Color32::from_gray(180)),
+        None => ("", Color32::from_gray(180)),
+    };
+    ui.add(egui::Label::new(egui::RichText::new(text).color(colour)).truncate())
+        .on_hover_text(text);
 }
 
 /// Ctrl+Z (undo) and Ctrl+Shift+Z (redo) pressed this frame, unless a text field has the

@@ -22,6 +22,37 @@ fn app_with(sculpt: Sculpt) -> EditorApp {
     )
 }
 
+/// A host for editor tests: applies every parameter change the editor makes at once (as a
+/// host does when nothing automates the parameter) and counts the gestures. The real hosts
+/// are tested by `plugin/tests/host_test.py`; this one lets the editor's own code that talks
+/// to the host run without a window.
+#[derive(Default)]
+struct TestHost {
+    gestures: std::sync::atomic::AtomicUsize,
+}
+
+impl GuiContextInner for TestHost {
+    fn plugin_api(&self) -> PluginApi {
+        PluginApi::Clap
+    }
+    unsafe fn raw_begin_set_parameter(&self, _param: ParamPtr) {
+        self.gestures.fetch_add(1, Ordering::Relaxed);
+    }
+    unsafe fn raw_set_parameter_normalized(&self, param: ParamPtr, normalized: f32) {
+        // SAFETY: the parameters the editor sets live in the `ModalForgeParams` the test holds
+        // for the whole call.
+        unsafe {
+            param._internal_set_normalized_value(normalized);
+        }
+    }
+    unsafe fn raw_end_set_parameter(&self, _param: ParamPtr) {}
+    fn get_state(&self) -> PluginState {
+        unreachable!("the editor never reads the plugin state")
+    }
+    fn set_state(&self, _state: PluginState) {}
+    fn request_restart(&self) {}
+}
+
 /// A camera looking along +y (from the front), one voxel per 10 pixels, at the box centre.
 fn front_camera() -> Camera {
     Camera {
@@ -485,6 +516,35 @@ fn matching_a_recording_gives_back_the_material() {
     );
     let back = Material::from_toml(&m.to_toml().unwrap(), "matched").unwrap();
     assert_eq!(back.poisson_ratio, m.poisson_ratio);
+    // The same through the editor: "Match recording" on the file in the path field, polled
+    // frame by frame, sets the Custom material and the damping knobs through the host.
+    let host = TestHost::default();
+    let setter = ParamSetter { raw_context: &host };
+    let mut app = app_with(Sculpt::from_spec("bowl:d=10,wall=2").unwrap());
+    setter.set_parameter(&app.params.material.size_m, 0.15);
+    app.path = path.display().to_string();
+    app.start_match();
+    let started = std::time::Instant::now();
+    while app.matching.is_some() {
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "the match never finished"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        app.poll_match(&setter);
+    }
+    let (message, error) = app.message.clone().unwrap();
+    assert!(
+        !error && message.starts_with("matched brass-bowl"),
+        "{message}"
+    );
+    let p = &app.params;
+    assert_eq!(p.material.preset.value(), MaterialChoice::Custom);
+    assert!((p.material.youngs_gpa.value() / knobs.youngs_gpa - 1.0).abs() < 1e-3);
+    assert!((p.material.poisson.value() - knobs.poisson).abs() < 1e-3);
+    assert_eq!(p.damping.law.value(), knobs.damping.0);
+    assert!(host.gestures.load(Ordering::Relaxed) >= 6);
+    assert!(dir.join("brass-bowl.material.toml").exists());
     let text = dir.join("notes.wav");
     std::fs::write(&text, "not audio").unwrap();
     let e = super::matching::run(&text, &grid, &hit, want)
@@ -541,4 +601,31 @@ fn a_quick_ctrl_z_tap_undoes_every_time() {
         (app.sculptor.undo_depth(), app.sculptor.redo_depth()),
         (1, 2)
     );
+}
+
+/// The message under the top bar has a line of its own: the bar is as tall with a message
+/// as without, so nothing below it moves when one appears or clears (it moved by 18 px).
+#[test]
+fn a_message_does_not_move_the_window() {
+    let host = TestHost::default();
+    let setter = ParamSetter { raw_context: &host };
+    let mut app = app_with(block([4, 4, 4]));
+    let ctx = egui::Context::default();
+    let height = |app: &mut EditorApp| {
+        let mut h = 0.0;
+        let _ = ctx.run_ui(egui::RawInput::default(), |ui| {
+            let r = ui
+                .scope(|ui| super::layout::top_bar(app, ui, &setter))
+                .response;
+            h = r.rect.height();
+        });
+        h
+    };
+    let quiet = height(&mut app);
+    app.message = Some(("saved /tmp/x.toml".into(), false));
+    let told = height(&mut app);
+    app.message = Some(("cannot read /tmp/y.vox: no such file".into(), true));
+    let error = height(&mut app);
+    assert!(quiet > 0.0);
+    assert_eq!((quiet, quiet), (told, error));
 }
