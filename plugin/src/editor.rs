@@ -101,6 +101,8 @@ pub struct EditorApp {
     lines: Vec<SpectrumLine>,
     /// A "Match recording" running in the background.
     matching: Option<matching::Matching>,
+    /// The preset last applied, and whether the object was edited since.
+    current_preset: Option<(String, bool)>,
 }
 
 /// A hit point the editor picked (the caller sets it as the Hit X/Y/Z parameters).
@@ -146,6 +148,7 @@ impl EditorApp {
             spectrum_key: None,
             lines: Vec::new(),
             matching: None,
+            current_preset: None,
         }
     }
 
@@ -254,6 +257,9 @@ impl EditorApp {
                 self.publish();
                 self.framed = false;
                 self.message = None;
+                if let Some((_, modified)) = &mut self.current_preset {
+                    *modified = true;
+                }
             }
             Err(e) => self.message = Some((e.to_string(), true)),
         }
@@ -335,7 +341,20 @@ impl EditorApp {
     fn load_vox(&mut self) {
         let path = Path::new(self.path.trim()).to_path_buf();
         match modalforge::shape::vox::read_vox(&path, 1.0) {
-            Ok(grid) => self.edit(|s| s.replace(&grid)),
+            Ok(grid) => {
+                self.edit(|s| s.replace(&grid));
+                if self.message.is_none() {
+                    let [x, y, z] = grid.dims();
+                    self.message = Some((
+                        format!(
+                            "loaded {}: {x}x{y}x{z}, {} voxels",
+                            path.display(),
+                            grid.count()
+                        ),
+                        false,
+                    ));
+                }
+            }
             Err(e) => self.message = Some((e.to_string(), true)),
         }
     }
@@ -534,7 +553,21 @@ impl EditorApp {
         set_f(&p.strike.hit_x, preset.hit[0]);
         set_f(&p.strike.hit_y, preset.hit[1]);
         set_f(&p.strike.hit_z, preset.hit[2]);
-        self.message = Some((format!("{}: {}", preset.name, preset.description), false));
+        self.message = Some(if preset.description.trim().is_empty() {
+            (format!("loaded preset {}", preset.name), false)
+        } else {
+            (format!("{}: {}", preset.name, preset.description), false)
+        });
+        self.current_preset = Some((preset.name.clone(), false));
+    }
+
+    /// The Presets menu's caption: the preset last applied, marked once the object is edited.
+    pub fn presets_caption(&self) -> String {
+        match &self.current_preset {
+            None => "Presets".into(),
+            Some((name, false)) => name.clone(),
+            Some((name, true)) => format!("{name} (modified)"),
+        }
     }
 }
 

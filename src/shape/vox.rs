@@ -59,7 +59,12 @@ pub fn parse_vox(bytes: &[u8], name: &str, voxel_size_m: f64) -> Result<VoxelGri
         std::panic::catch_unwind(|| dot_vox::load_bytes(bytes)).unwrap_or(Err("parser failed"));
     let data = parsed.map_err(|reason| VoxError::Parse {
         path: name.to_string(),
-        reason,
+        // dot_vox's usual reason repeats the message itself; say what to do instead.
+        reason: if reason.eq_ignore_ascii_case("not a valid magicavoxel .vox file") {
+            "no 'VOX ' header and chunks: save or export it from MagicaVoxel again"
+        } else {
+            reason
+        },
     })?;
     let model = data
         .models

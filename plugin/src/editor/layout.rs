@@ -47,12 +47,13 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         ui.strong("ModalForge");
         ui.separator();
         let mut chosen = None;
+        let current = app.current_preset.as_ref().map(|(name, _)| name.clone());
         egui::ComboBox::from_id_salt("preset")
-            .selected_text("Presets")
+            .selected_text(app.presets_caption())
             .show_ui(ui, |ui| {
                 for (i, p) in app.presets.iter().enumerate() {
                     if ui
-                        .selectable_label(false, &p.name)
+                        .selectable_label(current.as_ref() == Some(&p.name), &p.name)
                         .on_hover_text(&p.description)
                         .clicked()
                     {

@@ -629,3 +629,57 @@ fn a_message_does_not_move_the_window() {
     assert!(quiet > 0.0);
     assert_eq!((quiet, quiet), (told, error));
 }
+
+/// Honest feedback through the host: applying a preset names it (its description, or
+/// "loaded preset NAME" when it has none) and marks it current; an edit clears the message and
+/// marks the preset modified; loading a `.vox` says what it loaded; a file that is not a
+/// `.vox` is one error that does not repeat itself and says what to do.
+#[test]
+fn file_actions_say_what_they_did() {
+    let host = TestHost::default();
+    let setter = ParamSetter { raw_context: &host };
+    let mut app = app_with(block([4, 4, 4]));
+    assert_eq!(app.presets_caption(), "Presets");
+    let mut preset = app.current_preset("plain").unwrap();
+    preset.description = String::new();
+    app.apply_preset(&preset, &setter);
+    assert_eq!(
+        app.message.clone().unwrap(),
+        ("loaded preset plain".into(), false)
+    );
+    assert_eq!(app.presets_caption(), "plain");
+    preset.description = "a plain block".into();
+    app.apply_preset(&preset, &setter);
+    assert_eq!(app.message.clone().unwrap().0, "plain: a plain block");
+    app.edit(|s| s.load_primitive("box", 5));
+    assert_eq!(app.message, None);
+    assert_eq!(app.presets_caption(), "plain (modified)");
+
+    let dir = std::env::temp_dir().join(format!("mf-feedback-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vox = dir.join("block.vox");
+    let grid = modalforge::shape::VoxelGrid::from_fn([6, 5, 3], 1.0, |_, _, _| true).unwrap();
+    modalforge::shape::vox::write_vox(&grid, &vox).unwrap();
+    app.path = vox.display().to_string();
+    app.load_vox();
+    let (m, error) = app.message.clone().unwrap();
+    assert!(
+        !error && m == format!("loaded {}: 6x5x3, 90 voxels", vox.display()),
+        "{m}"
+    );
+    let bad = dir.join("notes.vox");
+    std::fs::write(&bad, "not a model").unwrap();
+    app.path = bad.display().to_string();
+    app.load_vox();
+    let (m, error) = app.message.clone().unwrap();
+    assert!(
+        error && m.contains("export it from MagicaVoxel again"),
+        "{m}"
+    );
+    assert_eq!(
+        m.to_lowercase().matches("not a valid magicavoxel").count(),
+        1,
+        "{m}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
