@@ -683,3 +683,16 @@ fn file_actions_say_what_they_did() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// An idle window does not redraw ten times a second: without an engine, a solve, a match or
+/// ringing notes it asks for a redraw every 0.5 s; while a match runs, every 0.1 s.
+#[test]
+fn an_idle_window_redraws_slowly() {
+    let mut app = app_with(block([4, 4, 4]));
+    assert_eq!(app.redraw_after(), std::time::Duration::from_millis(500));
+    let missing = std::env::temp_dir().join("modalforge-no-such-recording.wav");
+    app.path = missing.display().to_string();
+    app.start_match();
+    assert!(app.matching.is_some());
+    assert_eq!(app.redraw_after(), std::time::Duration::from_millis(100));
+}
