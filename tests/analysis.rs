@@ -205,12 +205,11 @@ fn the_cli_analyzes_a_rendered_strike() {
 #[test]
 fn a_struck_shape_gives_back_its_material() {
     use modalforge::analysis::material_fit::{fit_material, MaterialFitOptions};
-    use modalforge::analysis::synthetic::strike_of;
-    use modalforge::analysis::ExtractedMode;
+    use modalforge::analysis::synthetic::{self, strike_of};
     use modalforge::basis::{Hit, ModeBasis};
     use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
     use modalforge::fem::ElementKind;
-    use modalforge::material::{DampedMode, Damping, Material};
+    use modalforge::material::{Damping, Material};
     use modalforge::shape::spec::ShapeSpec;
     faer::set_global_parallelism(faer::Par::Seq);
     const SHAPES: [&str; 16] = [
@@ -269,23 +268,7 @@ fn a_struck_shape_gives_back_its_material() {
             &options,
         )
         .unwrap();
-        let modes: Vec<ExtractedMode> = basis
-            .strike(&material, h, &hit)
-            .unwrap()
-            .iter()
-            .filter_map(|m| match m.damped {
-                DampedMode::Oscillating {
-                    freq_hz,
-                    decay_per_s,
-                } if freq_hz < 20_000.0 && m.gain != 0.0 => Some(ExtractedMode {
-                    freq_hz,
-                    decay_per_s,
-                    gain: m.gain,
-                    phase: -std::f64::consts::FRAC_PI_2,
-                }),
-                _ => None,
-            })
-            .collect();
+        let modes = synthetic::recorded_modes(&basis.strike(&material, h, &hit).unwrap(), 20_000.0);
         let case = strike_of(&modes, 48_000.0, 0.03, 0.6, 30.0, i as u64);
         let found = extract(&case.signal, case.fs, &AnalysisOptions::default()).unwrap();
         let recorded = &found.modes;

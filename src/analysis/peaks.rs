@@ -239,17 +239,7 @@ mod tests {
                 phase: -1.2,
             },
         ];
-        let x: Vec<f64> = (0..48_000)
-            .map(|i| {
-                let t = i as f64 / fs;
-                truth
-                    .iter()
-                    .map(|m| {
-                        m.gain * (-m.decay_per_s * t).exp() * (TAU * m.freq_hz * t + m.phase).cos()
-                    })
-                    .sum()
-            })
-            .collect();
+        let x = crate::analysis::synthetic::ring_out(&truth, fs, 48_000);
         let found = peaks(&x, fs, 0, (40.0, 20_000.0), 1e-9, 10);
         for t in &truth {
             let m = found

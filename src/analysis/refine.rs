@@ -307,17 +307,7 @@ mod tests {
                 phase: -1.0,
             },
         ];
-        let x: Vec<f64> = (0..4000)
-            .map(|i| {
-                let t = i as f64 / fs;
-                truth
-                    .iter()
-                    .map(|m| {
-                        m.gain * (-m.decay_per_s * t).exp() * (TAU * m.freq_hz * t + m.phase).cos()
-                    })
-                    .sum()
-            })
-            .collect();
+        let x = crate::analysis::synthetic::ring_out(&truth, fs, 4000);
         let res: Vec<Resolution> = [256, 1024]
             .iter()
             .map(|&s| Resolution::new(&x, s))
@@ -378,17 +368,7 @@ mod tests {
                 phase: 2.0,
             },
         ];
-        let x: Vec<f64> = (0..16_000)
-            .map(|i| {
-                let t = i as f64 / fs;
-                truth
-                    .iter()
-                    .map(|m| {
-                        m.gain * (-m.decay_per_s * t).exp() * (TAU * m.freq_hz * t + m.phase).cos()
-                    })
-                    .sum()
-            })
-            .collect();
+        let x = crate::analysis::synthetic::ring_out(&truth, fs, 16_000);
         let guess: Vec<ExtractedMode> = truth
             .iter()
             .map(|m| ExtractedMode {

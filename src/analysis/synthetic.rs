@@ -119,6 +119,43 @@ pub fn strike_of(
     }
 }
 
+/// `n` samples at `fs` of the modes rung from `t = 0`, noise-free, in their own units: the
+/// exact signal a method is tested against.
+pub fn ring_out(modes: &[ExtractedMode], fs: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / fs;
+            modes
+                .iter()
+                .map(|m| {
+                    m.gain * (-m.decay_per_s * t).exp() * (TAU * m.freq_hz * t + m.phase).cos()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// A solved object's struck modes as a recording holds them (the oscillating ones below
+/// `max_hz` with a non-zero gain): each rings as `g e^(-d t) sin(2 pi f t)`, i.e. phase
+/// `-pi/2`. The input of a strike rendered from FEM ([`strike_of`]).
+pub fn recorded_modes(struck: &[crate::basis::StruckMode], max_hz: f64) -> Vec<ExtractedMode> {
+    struck
+        .iter()
+        .filter_map(|m| match m.damped {
+            crate::material::DampedMode::Oscillating {
+                freq_hz,
+                decay_per_s,
+            } if freq_hz < max_hz && m.gain != 0.0 => Some(ExtractedMode {
+                freq_hz,
+                decay_per_s,
+                gain: m.gain,
+                phase: -std::f64::consts::FRAC_PI_2,
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
 /// `0.2 (sum of the modes from lead_s on + noise)`, `duration_s` at `fs`.
 fn ring(
     modes: &[ExtractedMode],

@@ -427,12 +427,12 @@ fn partial_voxels_are_drawn_as_their_filled_volume() {
 /// file is one clear error.
 #[test]
 fn matching_a_recording_gives_back_the_material() {
-    use modalforge::analysis::{synthetic, wav, ExtractedMode};
+    use modalforge::analysis::{synthetic, wav};
     use modalforge::basis::ModeBasis;
     use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
     use modalforge::engine::HitPoint;
     use modalforge::fem::ElementKind;
-    use modalforge::material::{DampedMode, Material};
+    use modalforge::material::Material;
     let dir = std::env::temp_dir().join(format!("modalforge-match-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let grid = Sculpt::from_spec("bowl:d=10,wall=2")
@@ -456,23 +456,7 @@ fn matching_a_recording_gives_back_the_material() {
         },
     )
     .unwrap();
-    let modes: Vec<ExtractedMode> = basis
-        .strike(&brass, h, &hit)
-        .unwrap()
-        .iter()
-        .filter_map(|m| match m.damped {
-            DampedMode::Oscillating {
-                freq_hz,
-                decay_per_s,
-            } if freq_hz < 20_000.0 && m.gain != 0.0 => Some(ExtractedMode {
-                freq_hz,
-                decay_per_s,
-                gain: m.gain,
-                phase: -std::f64::consts::FRAC_PI_2,
-            }),
-            _ => None,
-        })
-        .collect();
+    let modes = synthetic::recorded_modes(&basis.strike(&brass, h, &hit).unwrap(), 20_000.0);
     let strike = synthetic::strike_of(&modes, 48_000.0, 0.02, 0.6, 40.0, 5);
     let path = dir.join("brass-bowl.wav");
     wav::write_mono(&path, strike.fs, &strike.signal).unwrap();
