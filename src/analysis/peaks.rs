@@ -16,7 +16,7 @@
 //! `max_modes` are found. A window `FRAME / fs` long cannot split modes closer than about two
 //! bins (2-3 Hz at 48 kHz); the subspace method can.
 
-use super::fft::fft;
+use super::fft::{fft, hann};
 use super::ExtractedMode;
 use faer::c64;
 use std::f64::consts::TAU;
@@ -64,9 +64,7 @@ pub fn peaks(
     if n < frame {
         return Vec::new();
     }
-    let window: Vec<f64> = (0..frame)
-        .map(|i| 0.5 - 0.5 * (TAU * i as f64 / frame as f64).cos())
-        .collect();
+    let window = hann(frame);
     let padded = 2 * frame;
     let bin_hz = fs / padded as f64;
     // White noise of RMS sigma gives a windowed bin of expected magnitude sigma ||w||.

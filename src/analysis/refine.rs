@@ -15,7 +15,7 @@
 //! `ln d`, `ln f` and `phi`, which puts their steps on comparable scales (the frequency's a
 //! hundredth of the others'). A step that raises the loss is undone and the rate halved.
 
-use super::fft::fft;
+use super::fft::{fft, hann, stft};
 use super::ExtractedMode;
 use faer::c64;
 use std::f64::consts::TAU;
@@ -141,9 +141,7 @@ struct Resolution {
 
 impl Resolution {
     fn new(x: &[f64], size: usize) -> Self {
-        let window: Vec<f64> = (0..size)
-            .map(|i| 0.5 - 0.5 * (TAU * i as f64 / size as f64).cos())
-            .collect();
+        let window = hann(size);
         let hop = size / 4;
         let spectra = stft(x, &window, hop);
         let largest = spectra
@@ -181,23 +179,6 @@ impl Scratch {
             buf: Vec::new(),
         }
     }
-}
-
-/// The frames' half spectra (bins `0..=size/2`) of `x`.
-fn stft(x: &[f64], window: &[f64], hop: usize) -> Vec<Vec<c64>> {
-    let size = window.len();
-    let mut buf = vec![c64::new(0.0, 0.0); size];
-    let mut out = Vec::new();
-    let mut at = 0;
-    while at + size <= x.len() {
-        for (b, (v, w)) in buf.iter_mut().zip(x[at..at + size].iter().zip(window)) {
-            *b = c64::new(v * w, 0.0);
-        }
-        fft(&mut buf);
-        out.push(buf[..=size / 2].to_vec());
-        at += hop;
-    }
-    out
 }
 
 /// The loss of `modes` and its gradient in `ln a`, `ln d`, `ln f` and `phi`, into `grad`.
@@ -288,6 +269,19 @@ fn loss_and_gradient(
 mod tests {
     use super::*;
 
+    /// `truth` 0.1 % off in frequency, 20 % in decay, 2 dB in amplitude and 0.3 rad in phase.
+    fn perturbed(truth: &[ExtractedMode]) -> Vec<ExtractedMode> {
+        truth
+            .iter()
+            .map(|m| ExtractedMode {
+                freq_hz: m.freq_hz * 1.001,
+                decay_per_s: m.decay_per_s * 1.2,
+                gain: m.gain * 0.8,
+                phase: m.phase + 0.3,
+            })
+            .collect()
+    }
+
     /// The analytic gradient against central differences of the loss, for each parameter of
     /// each of two modes (relative agreement 1e-4: the differences are O(h^2) with h = 1e-6).
     #[test]
@@ -312,15 +306,7 @@ mod tests {
             .iter()
             .map(|&s| Resolution::new(&x, s))
             .collect();
-        let guess: Vec<ExtractedMode> = truth
-            .iter()
-            .map(|m| ExtractedMode {
-                freq_hz: m.freq_hz * 1.001,
-                decay_per_s: m.decay_per_s * 1.2,
-                gain: m.gain * 0.8,
-                phase: m.phase + 0.3,
-            })
-            .collect();
+        let guess = perturbed(&truth);
         let mut s = Scratch::new(x.len());
         let mut grad = vec![[0.0; 4]; 2];
         loss_and_gradient(&guess, fs, &res, &mut s, &mut grad);
@@ -369,15 +355,7 @@ mod tests {
             },
         ];
         let x = crate::analysis::synthetic::ring_out(&truth, fs, 16_000);
-        let guess: Vec<ExtractedMode> = truth
-            .iter()
-            .map(|m| ExtractedMode {
-                freq_hz: m.freq_hz * 1.001,
-                decay_per_s: m.decay_per_s * 1.2,
-                gain: m.gain * 0.8,
-                phase: m.phase + 0.3,
-            })
-            .collect();
+        let guess = perturbed(&truth);
         let r = refine(&x, fs, 0, &guess);
         assert!(r.loss_after < 0.1 * r.loss_before, "{r:?}");
         for (m, t) in r.modes.iter().zip(&truth) {

@@ -15,13 +15,11 @@
 //!
 //! The FFT is [`super::fft`]'s.
 
-use super::fft::fft;
+use super::fft::{hann, stft};
 use super::ExtractedMode;
 use crate::modes::{CullSettings, ModeError, ModeSet};
 use crate::synth::render::{render as render_bank, BankKind, Performance, RenderError};
 use crate::synth::Excitation;
-use faer::c64;
-use std::f64::consts::TAU;
 
 /// Modes the baseline keeps (the loudest at the onset).
 pub const BASELINE_MODES: usize = 5;
@@ -130,26 +128,20 @@ pub fn log_mel_distance_db(reference: &[f64], other: &[f64], fs: f64, start: usi
 /// Each frame's mel band powers in dB.
 fn log_mel(x: &[f64], fs: f64) -> Vec<[f64; MEL_BANDS]> {
     let bank = mel_bank(fs);
-    let window: Vec<f64> = (0..FRAME)
-        .map(|i| 0.5 - 0.5 * (TAU * i as f64 / FRAME as f64).cos())
-        .collect();
-    let mut buf = vec![c64::new(0.0, 0.0); FRAME];
-    let mut frames = Vec::new();
-    let mut at = 0;
-    while at + FRAME <= x.len() {
-        for (b, (v, w)) in buf.iter_mut().zip(x[at..at + FRAME].iter().zip(&window)) {
-            *b = c64::new(v * w, 0.0);
-        }
-        fft(&mut buf);
-        let mut bands = [0.0; MEL_BANDS];
-        for (band, filter) in bands.iter_mut().zip(&bank) {
-            let power: f64 = filter.iter().map(|&(k, w)| w * buf[k].norm_sqr()).sum();
-            *band = 10.0 * power.max(1e-30).log10();
-        }
-        frames.push(bands);
-        at += HOP;
-    }
-    frames
+    stft(x, &hann(FRAME), HOP)
+        .iter()
+        .map(|spectrum| {
+            let mut bands = [0.0; MEL_BANDS];
+            for (band, filter) in bands.iter_mut().zip(&bank) {
+                let power: f64 = filter
+                    .iter()
+                    .map(|&(k, w)| w * spectrum[k].norm_sqr())
+                    .sum();
+                *band = 10.0 * power.max(1e-30).log10();
+            }
+            bands
+        })
+        .collect()
 }
 
 /// Triangular mel filters: for each band, its FFT bins and weights.
@@ -184,7 +176,7 @@ fn mel_bank(fs: f64) -> Vec<Vec<(usize, f64)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f64::consts::PI;
+    use std::f64::consts::{PI, TAU};
 
     /// The distance is 0 for a signal against itself, 6.02 dB for white noise against a copy
     /// at twice the amplitude (every band is above the floor and 20 log10 2 up), and the
