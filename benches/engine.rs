@@ -31,6 +31,7 @@ fn main() {
             count: ModeCount::First(200),
             ..EigenOptions::default()
         },
+        recording: None,
     };
     let mut voicing = Voicing::from_material(&steel, 1.2).unwrap();
     voicing.hardness_s = 2e-4;

@@ -97,6 +97,7 @@ fn edit_to_first_sound() {
                     count: ModeCount::First(60),
                     ..EigenOptions::default()
                 },
+                recording: None,
             });
             loop {
                 audio.process(&mut block, &[]);

@@ -22,6 +22,7 @@
 mod audio;
 mod object;
 pub mod pitch;
+pub mod recorded;
 mod solvers;
 pub mod spectrum;
 mod voice;

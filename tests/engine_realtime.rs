@@ -29,6 +29,7 @@ fn request(len: usize) -> ObjectRequest {
             count: ModeCount::First(40),
             ..EigenOptions::default()
         },
+        recording: None,
     }
 }
 

@@ -119,6 +119,7 @@ pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Optio
             count: ModeCount::First(params.solver.modes.value().max(1) as usize),
             ..EigenOptions::default()
         },
+        recording: None,
     })
 }
 

@@ -140,15 +140,17 @@ impl AudioEngine {
     pub fn fundamental_hz(&self) -> Option<f64> {
         let obj = self.object.as_ref()?;
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let partials =
-            obj.basis
-                .eigenvalues()
-                .iter()
-                .zip(&obj.forces)
-                .filter_map(|(&l, &force)| {
-                    tune(&self.voicing, l, h, 0.0, self.sample_rate_hz)
-                        .map(|(f, _)| (f, force * force))
-                });
+        let partials = obj
+            .basis
+            .eigenvalues()
+            .iter()
+            .zip(&obj.forces)
+            .enumerate()
+            .filter_map(|(i, (&l, &force))| {
+                let ratio = obj.basis.decay_ratio(i);
+                tune(&self.voicing, l, h, ratio, 0.0, self.sample_rate_hz)
+                    .map(|(f, _)| (f, force * force))
+            });
         super::pitch::cluster_pitch_hz(partials)
     }
 
@@ -263,8 +265,10 @@ impl AudioEngine {
             .eigenvalues()
             .iter()
             .zip(&obj.forces)
-            .filter_map(|(&l, &force)| {
-                let (f, _) = tune(&self.voicing, l, h, 0.0, self.sample_rate_hz)?;
+            .enumerate()
+            .filter_map(|(i, (&l, &force))| {
+                let ratio = obj.basis.decay_ratio(i);
+                let (f, _) = tune(&self.voicing, l, h, ratio, 0.0, self.sample_rate_hz)?;
                 Some(self.voicing.modal_gain(force, h, f).abs())
             })
             .sum();
@@ -369,7 +373,15 @@ impl AudioEngine {
             if self.struck.len() == self.struck.capacity() {
                 break;
             }
-            let Some((f, d)) = tune(&self.voicing, lambda, h, 0.0, self.sample_rate_hz) else {
+            let decay_ratio = obj.basis.decay_ratio(i);
+            let Some((f, d)) = tune(
+                &self.voicing,
+                lambda,
+                h,
+                decay_ratio,
+                0.0,
+                self.sample_rate_hz,
+            ) else {
                 continue;
             };
             let gain = self.voicing.modal_gain(obj.forces[i], h, f);
@@ -383,6 +395,7 @@ impl AudioEngine {
                 generation: obj.generation,
                 index: i,
                 unit_eigenvalue: lambda * (obj.extent * obj.extent) as f64,
+                decay_ratio,
                 gain,
                 level,
             });

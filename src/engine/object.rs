@@ -5,6 +5,7 @@
 //! `rtrb` ring (a pointer move), and moved back through the retire ring when replaced, to be
 //! freed on the worker.
 
+use super::recorded::RecordedObject;
 use super::voicing::HitPoint;
 use crate::basis::{Hit, HitError, ModeBasis};
 use crate::predictor::object::PredictedObject;
@@ -19,6 +20,8 @@ pub enum ObjectModes {
     Fem(ModeBasis),
     /// The neural predictor: one mode per predicted band, in milliseconds.
     Predicted(PredictedObject),
+    /// A recording's own modes ([`super::recorded`]): played as recorded.
+    Recorded(RecordedObject),
 }
 
 impl ObjectModes {
@@ -27,6 +30,7 @@ impl ObjectModes {
         match self {
             ObjectModes::Fem(b) => &b.solution.eigenvalues,
             ObjectModes::Predicted(p) => &p.eigenvalues,
+            ObjectModes::Recorded(r) => &r.eigenvalues,
         }
     }
 
@@ -40,6 +44,7 @@ impl ObjectModes {
         match self {
             ObjectModes::Fem(b) => b.grid_dims(),
             ObjectModes::Predicted(p) => p.grid_dims,
+            ObjectModes::Recorded(_) => [1, 1, 1],
         }
     }
 
@@ -58,6 +63,10 @@ impl ObjectModes {
                 p.reference_forces_into(hit, voxel_size_m, out);
                 Ok(())
             }
+            ObjectModes::Recorded(r) => {
+                r.reference_forces_into(out);
+                Ok(())
+            }
         }
     }
 
@@ -65,7 +74,16 @@ impl ObjectModes {
     pub fn fem(&self) -> Option<&ModeBasis> {
         match self {
             ObjectModes::Fem(b) => Some(b),
-            ObjectModes::Predicted(_) => None,
+            ObjectModes::Predicted(_) | ObjectModes::Recorded(_) => None,
+        }
+    }
+
+    /// Mode `i`'s decay over the damping law's: 1 for solved shapes, a recorded mode's own
+    /// ratio ([`super::recorded`]). Never allocates.
+    pub fn decay_ratio(&self, i: usize) -> f64 {
+        match self {
+            ObjectModes::Recorded(r) => r.decay_ratios.get(i).copied().unwrap_or(1.0),
+            _ => 1.0,
         }
     }
 }

@@ -60,7 +60,14 @@ pub fn spectrum(
         .zip(&forces)
         .enumerate()
         .filter_map(|(index, (&lambda, &force))| {
-            let (freq_hz, decay_per_s) = tune(voicing, lambda, h, 0.0, sample_rate_hz)?;
+            let (freq_hz, decay_per_s) = tune(
+                voicing,
+                lambda,
+                h,
+                basis.decay_ratio(index),
+                0.0,
+                sample_rate_hz,
+            )?;
             let gain = voicing.modal_gain(force, h, freq_hz);
             let factor = excitation.modal_factor(Complex64::new(-decay_per_s, TAU * freq_hz));
             let amplitude = (gain * factor.norm()).abs();

@@ -20,6 +20,9 @@ pub(crate) struct SlotMode {
     /// Its eigenvalue scaled to an object one voxel long (`lambda_ref extent^2`), so that the
     /// voicing's size alone sets its frequency, whatever grid it was solved on.
     pub unit_eigenvalue: f64,
+    /// Its decay over the damping law's (1 but for a recording's modes,
+    /// [`super::recorded`]).
+    pub decay_ratio: f64,
     /// The gain of its last strike (per unit velocity), kept for re-tuning.
     pub gain: f64,
     /// Amplitude the strike that added it gave it (for the budget's "loudest first").
@@ -90,7 +93,9 @@ impl Voice {
         self.next_modes.clear();
         self.tunings.clear();
         for (j, m) in self.modes.iter().enumerate() {
-            if let Some((freq_hz, decay_per_s)) = tune(voicing, m.unit_eigenvalue, h, extra, fs) {
+            if let Some((freq_hz, decay_per_s)) =
+                tune(voicing, m.unit_eigenvalue, h, m.decay_ratio, extra, fs)
+            {
                 self.next_modes.push(*m);
                 self.tunings.push(Tuning {
                     freq_hz,
@@ -194,7 +199,9 @@ impl Voice {
             if ringing {
                 continue;
             }
-            if let Some((freq_hz, decay_per_s)) = tune(voicing, s.unit_eigenvalue, h, extra, fs) {
+            if let Some((freq_hz, decay_per_s)) =
+                tune(voicing, s.unit_eigenvalue, h, s.decay_ratio, extra, fs)
+            {
                 self.next_modes.push(*s);
                 self.tunings.push(Tuning {
                     freq_hz,

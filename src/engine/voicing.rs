@@ -248,11 +248,14 @@ impl Voicing {
 }
 
 /// A mode ready for a bank, or `None` where it cannot ring at `sample_rate_hz` (overdamped, at
-/// 0 Hz, or at or above Nyquist). `extra_decay_per_s` is added (a muted note).
+/// 0 Hz, or at or above Nyquist). The law's decay is multiplied by `decay_ratio` (1 for solved
+/// shapes; a recorded mode's own ratio to the law, [`super::recorded`]), and the damped
+/// frequency follows from that decay; `extra_decay_per_s` is then added (a muted note).
 pub fn tune(
     voicing: &Voicing,
     reference_eigenvalue: f64,
     voxel_size_m: f64,
+    decay_ratio: f64,
     extra_decay_per_s: f64,
     sample_rate_hz: f64,
 ) -> Option<(f64, f64)> {
@@ -262,6 +265,18 @@ pub fn tune(
             freq_hz,
             decay_per_s,
         } => {
+            let (freq_hz, decay_per_s) = if decay_ratio == 1.0 {
+                (freq_hz, decay_per_s)
+            } else {
+                // omega_d^2 = omega_n^2 - d^2 with the scaled decay.
+                let d = decay_ratio * decay_per_s;
+                let wd2 = w2 - d * d;
+                // NaN fails too.
+                if wd2.is_nan() || wd2 <= 0.0 {
+                    return None;
+                }
+                (wd2.sqrt() / TAU, d)
+            };
             let d = decay_per_s + extra_decay_per_s;
             let playable = freq_hz > 0.0 && freq_hz < 0.5 * sample_rate_hz && d < TAU * freq_hz;
             playable.then_some((freq_hz, d))

@@ -12,6 +12,7 @@
 //! unload; `../shared/notes/plugin.md`).
 
 use super::object::{ObjectModes, SolvedObject};
+use super::recorded::RecordedObject;
 use super::EngineStats;
 use crate::basis::{BasisError, ModeBasis};
 use crate::eigen::{EigenOptions, SolverKind};
@@ -39,6 +40,9 @@ pub struct ObjectRequest {
     pub solver: SolverKind,
     /// Mode count and tolerance, in reference units.
     pub options: EigenOptions,
+    /// A recording's modes to play instead of the shape ([`super::recorded`]): delivered as
+    /// they are, no solver runs (the status line names the solver "recording").
+    pub recording: Option<Arc<RecordedObject>>,
 }
 
 /// Something that turns a shape into modes. The worker runs its solvers in order for every
@@ -322,6 +326,12 @@ impl Worker {
     }
 
     fn solve(&mut self, request: &ObjectRequest) {
+        if let Some(recording) = &request.recording {
+            let modes = ObjectModes::Recorded(RecordedObject::clone(recording));
+            self.deliver(Ok(modes), "recording", Instant::now(), None);
+            lock(&self.shared.status).state = SolveState::Idle;
+            return;
+        }
         for i in 0..self.solvers.len() {
             if i > 0 && lock(&self.shared.mailbox).request.is_some() {
                 // A newer edit is waiting: the slower solvers would answer an old question.
@@ -338,52 +348,63 @@ impl Worker {
             };
             let result = self.solvers[i].solve(request);
             let expected_error = self.solvers[i].expected_error();
-            let ms = since.elapsed().as_secs_f64() * 1e3;
-            let report = match result {
-                Ok(basis) => {
-                    self.generation += 1;
-                    let modes = basis.mode_count();
-                    let warm_start = basis.fem().is_some_and(|b| b.solution.warm_start);
-                    let basis = Arc::new(basis);
-                    *lock(&self.shared.latest) = Some(LatestObject {
-                        generation: self.generation,
-                        basis: basis.clone(),
-                    });
-                    // Replaces (frees, here) an older object still waiting for the audio side.
-                    self.pending = Some(Box::new(SolvedObject::new(
-                        basis,
-                        self.generation,
-                        name,
-                        ms,
-                    )));
-                    self.housekeeping();
-                    SolveReport {
-                        solver: name,
-                        generation: self.generation,
-                        ms,
-                        modes,
-                        error: None,
-                        expected_error,
-                        warm_start,
-                    }
-                }
-                Err(e) => SolveReport {
-                    solver: name,
-                    generation: 0,
-                    ms,
-                    modes: 0,
-                    error: Some(e.to_string()),
-                    expected_error,
-                    warm_start: false,
-                },
-            };
-            let mut st = lock(&self.shared.status);
-            if report.error.is_none() {
-                st.playing = Some(report.clone());
-            }
-            st.last = Some(report);
-            st.solves += 1;
+            self.deliver(result, name, since, expected_error);
         }
         lock(&self.shared.status).state = SolveState::Idle;
+    }
+
+    /// Hands a solver's answer (begun at `since`) to the audio side and reports it.
+    fn deliver(
+        &mut self,
+        result: Result<ObjectModes, BasisError>,
+        name: &'static str,
+        since: Instant,
+        expected_error: Option<f64>,
+    ) {
+        let ms = since.elapsed().as_secs_f64() * 1e3;
+        let report = match result {
+            Ok(basis) => {
+                self.generation += 1;
+                let modes = basis.mode_count();
+                let warm_start = basis.fem().is_some_and(|b| b.solution.warm_start);
+                let basis = Arc::new(basis);
+                *lock(&self.shared.latest) = Some(LatestObject {
+                    generation: self.generation,
+                    basis: basis.clone(),
+                });
+                // Replaces (frees, here) an older object still waiting for the audio side.
+                self.pending = Some(Box::new(SolvedObject::new(
+                    basis,
+                    self.generation,
+                    name,
+                    ms,
+                )));
+                self.housekeeping();
+                SolveReport {
+                    solver: name,
+                    generation: self.generation,
+                    ms,
+                    modes,
+                    error: None,
+                    expected_error,
+                    warm_start,
+                }
+            }
+            Err(e) => SolveReport {
+                solver: name,
+                generation: 0,
+                ms,
+                modes: 0,
+                error: Some(e.to_string()),
+                expected_error,
+                warm_start: false,
+            },
+        };
+        let mut st = lock(&self.shared.status);
+        if report.error.is_none() {
+            st.playing = Some(report.clone());
+        }
+        st.last = Some(report);
+        st.solves += 1;
     }
 }

@@ -364,6 +364,7 @@ fn the_status_line_says_which_answer_plays_and_its_error() {
             count: modalforge::eigen::ModeCount::First(10),
             ..Default::default()
         },
+        recording: None,
     });
     // The approximate answer lands first; the status says so while the exact one is solved.
     let start = std::time::Instant::now();
