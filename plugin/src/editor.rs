@@ -14,6 +14,7 @@
 
 mod layout;
 pub mod matching;
+mod recording;
 pub mod sculptor;
 pub mod spectrum_view;
 pub mod view3d;
@@ -169,10 +170,20 @@ impl EditorApp {
         }
     }
 
-    /// Writes the sculpted object to the parameters (the worker notices and re-solves).
+    /// Writes the sculpted object to the parameters (the worker notices and re-solves); a
+    /// recording playing instead of the shape stops.
     fn publish(&mut self) {
         match self.sculptor.sculpt() {
             Ok(s) => {
+                let mut recording = self
+                    .params
+                    .recording
+                    .write()
+                    .unwrap_or_else(|e| e.into_inner());
+                if recording.is_some() {
+                    *recording = None;
+                }
+                drop(recording);
                 *self
                     .params
                     .object
@@ -343,6 +354,13 @@ impl EditorApp {
                 ),
                 true,
             ),
+            (SolveState::Idle, Some(last)) if last.solver == "recording" => (
+                format!(
+                    "playing a recording's {} modes (sculpt to play the shape) · {engine}",
+                    last.modes
+                ),
+                false,
+            ),
             (SolveState::Idle, Some(last)) => (
                 format!(
                     "{playing}{} modes solved in {:.2} s ({}) · {engine}",
@@ -432,96 +450,6 @@ impl EditorApp {
             Err(e @ PluginError::Io { .. }) => (e.to_string(), true),
             Err(e) => (format!("cannot save {}: {e}", path.display()), true),
         });
-    }
-
-    /// Starts "Match recording" on the file in the path field: the sculpted object as solved
-    /// (cropped, at the Size parameter), struck at the Hit parameters, from the current
-    /// material's E/rho.
-    fn start_match(&mut self) {
-        let path = Path::new(self.path.trim()).to_path_buf();
-        let grid = match self.sculptor.sculpt().and_then(|s| s.to_grid()) {
-            Ok(g) => g,
-            Err(e) => {
-                self.message = Some((e.to_string(), true));
-                return;
-            }
-        };
-        let longest = grid.dims().into_iter().max().unwrap_or(1) as f64;
-        let h = self.params.material.size_m.value() as f64 / longest;
-        let grid = match grid.with_voxel_size(h) {
-            Ok(g) => g,
-            Err(e) => {
-                self.message = Some((e.to_string(), true));
-                return;
-            }
-        };
-        let voicing = self.params.voicing(&self.table, 1.0, 1.0);
-        let mut hit = voicing.hit.reference_hit(grid.dims());
-        hit.point_m = hit.point_m.map(|c| c * h);
-        let e_over_rho = voicing.youngs_modulus_pa / voicing.density_kg_m3;
-        let m = matching::Matching::start(path, grid, hit, e_over_rho);
-        self.message = Some((format!("analysing {}...", m.file), false));
-        self.matching = Some(m);
-    }
-
-    /// Polls a running match: shows its progress, and when it is done sets the material and
-    /// damping parameters from it (through the host) and says what it found.
-    fn poll_match(&mut self, setter: &ParamSetter) {
-        let Some(m) = &self.matching else {
-            return;
-        };
-        let Some(result) = m.poll() else {
-            self.message = Some((
-                format!("analysing {}... {:.0} s", m.file, m.elapsed_s()),
-                false,
-            ));
-            return;
-        };
-        self.matching = None;
-        let matched = match result {
-            Ok(matched) => matched,
-            Err(e) => {
-                self.message = Some((e.to_string(), true));
-                return;
-            }
-        };
-        let Some(knobs) = matching::Knobs::of(&matched.material) else {
-            self.message = Some((
-                format!("{}: its damping law is not a knob setting", matched.summary),
-                true,
-            ));
-            return;
-        };
-        let p = &self.params;
-        let set_f = |param: &FloatParam, v: f32| {
-            setter.begin_set_parameter(param);
-            setter.set_parameter(param, v);
-            setter.end_set_parameter(param);
-        };
-        setter.begin_set_parameter(&p.material.preset);
-        setter.set_parameter(&p.material.preset, MaterialChoice::Custom);
-        setter.end_set_parameter(&p.material.preset);
-        set_f(&p.material.youngs_gpa, knobs.youngs_gpa);
-        set_f(&p.material.density, knobs.density);
-        set_f(&p.material.poisson, knobs.poisson);
-        let (law, a, b) = knobs.damping;
-        setter.begin_set_parameter(&p.damping.law);
-        setter.set_parameter(&p.damping.law, law);
-        setter.end_set_parameter(&p.damping.law);
-        match law {
-            crate::params::DampingChoice::PowerLaw => {
-                set_f(&p.damping.mu1, a);
-                set_f(&p.damping.mu2, b);
-            }
-            _ => {
-                set_f(&p.damping.alpha1, a);
-                set_f(&p.damping.alpha2_us, b);
-            }
-        }
-        let saved = matched
-            .saved
-            .map_or(String::new(), |f| format!("; saved {}", f.display()));
-        self.message = Some((format!("{}{saved}", matched.summary), false));
     }
 
     fn read_preset(&self) -> Result<Preset, PluginError> {

@@ -105,8 +105,8 @@ pub enum PluginError {
         /// What went wrong.
         source: std::io::Error,
     },
-    /// A recording that cannot be matched: unreadable, not audio, or nothing to fit.
-    #[error("cannot match {file}: {reason}")]
+    /// A recording that cannot be matched or played: unreadable, not audio, or nothing to fit.
+    #[error("cannot use recording {file}: {reason}")]
     Recording {
         /// The recording.
         file: String,

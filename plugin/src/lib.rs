@@ -95,7 +95,8 @@ impl Default for ModalForge {
 }
 
 /// The request the parameters and the persisted object describe, or `None` if the object is
-/// malformed (the previous one keeps playing).
+/// malformed (the previous one keeps playing). A persisted recording that is valid rides
+/// along and is played instead of the shape; a malformed one is ignored (the shape plays).
 pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Option<ObjectRequest> {
     let grid = params
         .object
@@ -119,7 +120,13 @@ pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Optio
             count: ModeCount::First(params.solver.modes.value().max(1) as usize),
             ..EigenOptions::default()
         },
-        recording: None,
+        recording: params
+            .recording
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .filter(|r| r.validate().is_ok())
+            .map(|r| Arc::new(r.clone())),
     })
 }
 
@@ -130,7 +137,16 @@ pub fn solve_source(
     table: Arc<MaterialTable>,
     answers: AnswerSwitch,
 ) -> modalforge::engine::RequestSource {
-    let mut last: Option<(u64, ElementKind, u64, SolverKind, usize, Answers)> = None;
+    type Key = (
+        u64,
+        ElementKind,
+        u64,
+        SolverKind,
+        usize,
+        Answers,
+        Option<u64>,
+    );
+    let mut last: Option<Key> = None;
     Box::new(move || {
         let r = object_request(&params, &table)?;
         let wanted = match params.solver.answers.value() {
@@ -150,6 +166,7 @@ pub fn solve_source(
             r.solver,
             count,
             wanted,
+            r.recording.as_ref().map(|rec| rec.fingerprint()),
         );
         if last == Some(key) {
             return None;

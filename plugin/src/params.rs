@@ -124,6 +124,11 @@ pub struct ModalForgeParams {
     /// The sculpted object (persisted with the project).
     #[persist = "object"]
     pub object: Arc<RwLock<crate::sculpt::Sculpt>>,
+    /// A recording's modes played instead of the sculpted object ("Play recording"; cleared
+    /// by the next sculpting edit), persisted with the project. States saved before it existed
+    /// have none.
+    #[persist = "recording"]
+    pub recording: Arc<RwLock<Option<modalforge::engine::recorded::RecordedObject>>>,
     /// Material constants and size.
     #[nested(group = "Material")]
     pub material: MaterialGroup,
@@ -259,6 +264,7 @@ impl Default for ModalForgeParams {
     fn default() -> Self {
         Self {
             object: Arc::new(RwLock::new(crate::sculpt::Sculpt::default())),
+            recording: Arc::new(RwLock::new(None)),
             material: MaterialGroup::default(),
             damping: DampingGroup::default(),
             strike: StrikeGroup::default(),

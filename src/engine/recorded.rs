@@ -32,6 +32,7 @@
 use super::voicing::Voicing;
 use crate::material::DampedMode;
 use crate::modes::ModeRecord;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 /// Smallest and largest decay ratio a mode keeps against the law (a mode 1000x off the law is
@@ -51,10 +52,18 @@ pub enum RecordedError {
     /// The voicing is invalid (E, rho or size not positive and finite, or a non-finite law).
     #[error("the voicing at import is invalid: {0}")]
     Voicing(#[from] super::VoicingError),
+    /// A stored recorded object (a plugin state, a file) does not hold together.
+    #[error("the stored recording {name:?} is malformed: {why}; load the recording again")]
+    Malformed {
+        /// Its name.
+        name: String,
+        /// What is wrong.
+        why: &'static str,
+    },
 }
 
 /// A recording's modes in reference units (see the module docs), ascending in frequency.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RecordedObject {
     /// A name for the status line (the file name).
     pub name: String,
@@ -118,6 +127,53 @@ impl RecordedObject {
             forces: kept.iter().map(|k| k.1).collect(),
             decay_ratios: kept.iter().map(|k| k.2).collect(),
         })
+    }
+
+    /// Checks a stored object (a plugin state is untrusted input): as many forces and ratios
+    /// as eigenvalues, at most [`MAX_RECORDED_MODES`] and at least one, eigenvalues positive,
+    /// finite and ascending, forces finite, ratios within [`DECAY_RATIO_RANGE`].
+    pub fn validate(&self) -> Result<(), RecordedError> {
+        let why = if self.eigenvalues.is_empty() {
+            Some("no modes")
+        } else if self.eigenvalues.len() > MAX_RECORDED_MODES {
+            Some("too many modes")
+        } else if self.forces.len() != self.eigenvalues.len()
+            || self.decay_ratios.len() != self.eigenvalues.len()
+        {
+            Some("the mode arrays differ in length")
+        } else if !self.eigenvalues.iter().all(|l| l.is_finite() && *l > 0.0)
+            || !self.eigenvalues.is_sorted()
+        {
+            Some("an eigenvalue is not positive and finite, or they are not ascending")
+        } else if !self.forces.iter().all(|f| f.is_finite()) {
+            Some("a force is not finite")
+        } else if !self
+            .decay_ratios
+            .iter()
+            .all(|r| (DECAY_RATIO_RANGE.0..=DECAY_RATIO_RANGE.1).contains(r))
+        {
+            Some("a decay ratio is out of range")
+        } else {
+            None
+        };
+        match why {
+            Some(why) => Err(RecordedError::Malformed {
+                name: self.name.clone(),
+                why,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// A fingerprint of the modes (not the name), to notice a different recording.
+    pub fn fingerprint(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        for v in [&self.eigenvalues, &self.forces, &self.decay_ratios] {
+            v.len().hash(&mut h);
+            v.iter().for_each(|x| x.to_bits().hash(&mut h));
+        }
+        h.finish()
     }
 
     /// Modes held.
@@ -235,6 +291,22 @@ mod tests {
             .collect();
         let obj = RecordedObject::new("x", &many, &v).unwrap();
         assert_eq!(obj.mode_count(), MAX_RECORDED_MODES);
+        assert_eq!(obj.validate(), Ok(()));
+        // A stored object that does not hold together is refused, naming the fault.
+        let mut bad = obj.clone();
+        bad.forces.pop();
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("differ in length"));
+        let mut bad = obj.clone();
+        bad.eigenvalues.swap(0, 1);
+        assert!(bad.validate().is_err());
+        let mut bad = obj.clone();
+        bad.decay_ratios[3] = f64::NAN;
+        assert!(bad.validate().is_err());
+        assert_ne!(bad.fingerprint(), obj.fingerprint());
         // The 10 quietest (the lowest here) went.
         let lowest = obj.eigenvalues[0] * v.eigen_scale(v.size_m);
         assert!(

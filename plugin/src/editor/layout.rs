@@ -94,6 +94,17 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         {
             app.start_match();
         }
+        if ui
+            .add_enabled(app.matching.is_none(), egui::Button::new("Play recording"))
+            .on_hover_text(
+                "Play the modes of a WAV of a struck object (the file in the field) instead of \
+                 the sculpted shape: in tune on every key, with the mallet, velocity, damping \
+                 and size knobs; the next sculpting edit plays the shape again",
+            )
+            .clicked()
+        {
+            app.start_play();
+        }
     });
     // The message has a line of its own, there whether or not a message is showing, so
     // nothing below the bar moves when one appears or clears.
