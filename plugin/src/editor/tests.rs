@@ -694,6 +694,7 @@ fn an_idle_window_redraws_slowly() {
 #[test]
 fn playing_a_recording_plays_its_modes_until_the_next_edit() {
     use modalforge::analysis::{synthetic, wav, ExtractedMode};
+    use modalforge::engine::recorded::RecordedObject;
     use modalforge::engine::spectrum::spectrum;
     use modalforge::engine::ObjectModes;
     let dir = std::env::temp_dir().join(format!("modalforge-play-{}", std::process::id()));
@@ -779,6 +780,38 @@ fn playing_a_recording_plays_its_modes_until_the_next_edit() {
         .unwrap()
         .recording
         .is_none());
+
+    // A real recording (the committed cowbell, 0.17 s): every extracted mode plays, as
+    // extracted, under its fitted law (power law, as `tests/analysis.rs` finds).
+    let cowbell = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/recordings/cowbell.wav"
+    );
+    let played = super::matching::run_play(std::path::Path::new(cowbell)).unwrap();
+    assert!(played.modes.len() >= 20, "{} modes", played.modes.len());
+    let (law, mu1, mu2) = played.damping.unwrap();
+    assert_eq!(law, crate::params::DampingChoice::PowerLaw);
+    let mut v = voicing;
+    v.damping = modalforge::engine::DampingParams::PowerLaw {
+        mu1: mu1 as f64,
+        mu2: mu2 as f64,
+    };
+    let object = RecordedObject::new("cowbell", &played.modes, &v).unwrap();
+    let lines = spectrum(&ObjectModes::Recorded(object), &v, 48_000.0).unwrap();
+    assert_eq!(lines.len(), played.modes.len());
+    let mut want = played.modes.clone();
+    want.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    for (line, m) in lines.iter().zip(&want) {
+        assert!(
+            (line.freq_hz / m.freq_hz - 1.0).abs() < 1e-9,
+            "{line:?} vs {m:?}"
+        );
+        // Unless the mode is more than 1000x off the law (the ratio's clamp).
+        assert!(
+            (line.decay_per_s / m.decay_per_s - 1.0).abs() < 1e-6,
+            "{line:?} vs {m:?}"
+        );
+    }
 
     let text = dir.join("notes.wav");
     std::fs::write(&text, "not audio").unwrap();
