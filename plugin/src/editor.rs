@@ -27,6 +27,7 @@ use crate::sculpt::Sculpt;
 use egui::Color32;
 use modalforge::engine::spectrum::{spectrum, SpectrumLine};
 use modalforge::engine::{EngineControl, SolveState, Voicing};
+use modalforge::shape::VoxelGrid;
 use nice_plug::context::gui::GuiContext;
 use nice_plug::prelude::*;
 use nice_plug_egui::{EguiEditorState, NiceEguiApp};
@@ -104,6 +105,9 @@ pub struct EditorApp {
     matching: Option<matching::Matching>,
     /// The preset last applied, and whether the object was edited since.
     current_preset: Option<(String, bool)>,
+    /// Voxels along the longest side of an imported mesh, or of a `.vox` too large for the
+    /// working box.
+    import_side: usize,
 }
 
 /// A hit point the editor picked (the caller sets it as the Hit X/Y/Z parameters).
@@ -150,6 +154,7 @@ impl EditorApp {
             lines: Vec::new(),
             matching: None,
             current_preset: None,
+            import_side: crate::sculpt::MAX_SIDE,
         }
     }
 
@@ -374,25 +379,62 @@ impl EditorApp {
         }
     }
 
-    fn load_vox(&mut self) {
+    /// Imports the model in the path field: a MagicaVoxel `.vox`, or an OBJ or STL mesh
+    /// (voxelised with `import_side` voxels along its longest side, partial voxels on its
+    /// surface). A `.vox` larger than the working box is resampled to fit (longest side
+    /// `import_side`). One undo step; the message says what was done.
+    fn import(&mut self) {
         let path = Path::new(self.path.trim()).to_path_buf();
-        match modalforge::shape::vox::read_vox(&path, 1.0) {
-            Ok(grid) => {
+        match self.read_model(&path) {
+            Ok((grid, said)) => {
                 self.edit(|s| s.replace(&grid));
                 if self.message.is_none() {
-                    let [x, y, z] = grid.dims();
-                    self.message = Some((
-                        format!(
-                            "loaded {}: {x}x{y}x{z}, {} voxels",
-                            path.display(),
-                            grid.count()
-                        ),
-                        false,
-                    ));
+                    self.message = Some((format!("loaded {}: {said}", path.display()), false));
                 }
             }
-            Err(e) => self.message = Some((e.to_string(), true)),
+            Err(e) => self.message = Some((e, true)),
         }
+    }
+
+    /// The model at `path` as a grid that fits the working box, and what was done to it.
+    fn read_model(&self, path: &Path) -> Result<(VoxelGrid, String), String> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_default();
+        let side = self.import_side.clamp(2, crate::sculpt::MAX_SIDE);
+        let undo = "Ctrl+Z restores the previous object";
+        if ext == "obj" || ext == "stl" {
+            let name = path.display().to_string();
+            let g = modalforge::shape::mesh::read_mesh(path)
+                .and_then(|m| modalforge::shape::mesh::voxelize(&m, side, &name))
+                .map_err(|e| e.to_string())?;
+            let [x, y, z] = g.dims();
+            let said = format!("voxelised to {x}x{y}x{z}, {} voxels; {undo}", g.count());
+            return Ok((g, said));
+        }
+        let g = modalforge::shape::vox::read_vox(path, 1.0)
+            .map_err(|e| e.to_string())?
+            .cropped();
+        let [x, y, z] = g.dims();
+        let read = format!("{x}x{y}x{z}, {} voxels", g.count());
+        if g.dims().into_iter().all(|d| d <= crate::sculpt::MAX_SIDE) {
+            return Ok((g, read));
+        }
+        let r = modalforge::shape::ops::resampled(&g, side).ok_or_else(|| {
+            format!(
+                "{}: {read}; resampled to {side} voxels it vanishes (too thin): raise the \
+                 import size",
+                path.display()
+            )
+        })?;
+        let [a, b, c] = r.dims();
+        let said = format!(
+            "{read}, resampled to {a}x{b}x{c} ({} voxels) to fit the {max}^3 box; {undo}",
+            r.count(),
+            max = crate::sculpt::MAX_SIDE
+        );
+        Ok((r, said))
     }
 
     fn save_vox(&mut self) {

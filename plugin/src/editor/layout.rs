@@ -68,9 +68,23 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         ui.separator();
         ui.label("File");
         ui.add(egui::TextEdit::singleline(&mut app.path).desired_width(260.0));
-        if ui.button("Load .vox").clicked() {
-            app.load_vox();
+        if ui
+            .button("Import")
+            .on_hover_text(
+                "Load the model in the field: a MagicaVoxel .vox, or an OBJ or STL mesh \
+                 (voxelised to the import size); a .vox larger than the 32^3 box is resampled \
+                 to the import size. Ctrl+Z restores the previous object",
+            )
+            .clicked()
+        {
+            app.import();
         }
+        ui.add(
+            egui::DragValue::new(&mut app.import_side)
+                .range(2..=32)
+                .suffix(" vox"),
+        )
+        .on_hover_text("Import size: voxels along the longest side of an imported mesh");
         if ui.button("Save .vox").clicked() {
             app.save_vox();
         }

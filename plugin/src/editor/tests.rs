@@ -649,7 +649,7 @@ fn file_actions_say_what_they_did() {
     let grid = modalforge::shape::VoxelGrid::from_fn([6, 5, 3], 1.0, |_, _, _| true).unwrap();
     modalforge::shape::vox::write_vox(&grid, &vox).unwrap();
     app.path = vox.display().to_string();
-    app.load_vox();
+    app.import();
     let (m, error) = app.message.clone().unwrap();
     assert!(
         !error && m == format!("loaded {}: 6x5x3, 90 voxels", vox.display()),
@@ -658,7 +658,7 @@ fn file_actions_say_what_they_did() {
     let bad = dir.join("notes.vox");
     std::fs::write(&bad, "not a model").unwrap();
     app.path = bad.display().to_string();
-    app.load_vox();
+    app.import();
     let (m, error) = app.message.clone().unwrap();
     assert!(
         error && m.contains("export it from MagicaVoxel again"),
@@ -820,5 +820,73 @@ fn playing_a_recording_plays_its_modes_until_the_next_edit() {
         e.starts_with("cannot use recording") && !e.contains('\n'),
         "{e}"
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Any model can be imported (issue 18): a MagicaVoxel model larger than the 32^3 box is
+/// resampled to the import size (48x24x12 -> 32x16x8, the proportions kept exactly, the
+/// solid block staying solid: 4096 voxels), an OBJ mesh (a 2 x 1 x 1 box) is voxelised to it
+/// (32x16x16, full: 8192), each says what it did, and undo restores the object before.
+#[test]
+fn models_larger_than_the_box_are_fitted_and_meshes_voxelised() {
+    let mut app = app_with(block([4, 4, 4]));
+    let dir = std::env::temp_dir().join(format!("mf-import-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vox = dir.join("big.vox");
+    let big = modalforge::shape::VoxelGrid::from_fn([48, 24, 12], 1.0, |_, _, _| true).unwrap();
+    modalforge::shape::vox::write_vox(&big, &vox).unwrap();
+    app.path = vox.display().to_string();
+    app.import();
+    let (m, error) = app.message.clone().unwrap();
+    assert!(!error, "{m}");
+    assert!(
+        m.contains("48x24x12, 13824 voxels, resampled to 32x16x8 (4096 voxels)")
+            && m.contains("Ctrl+Z"),
+        "{m}"
+    );
+    assert_eq!(app.sculptor.bounds().unwrap().1, [32, 16, 8]);
+    assert_eq!(app.sculptor.count(), 4096);
+    assert!(app.undo());
+    assert_eq!(app.sculptor.bounds().unwrap().1, [4, 4, 4]);
+
+    let obj = dir.join("brick.obj");
+    let v = [
+        [0., 0., 0.],
+        [2., 0., 0.],
+        [2., 1., 0.],
+        [0., 1., 0.],
+        [0., 0., 1.],
+        [2., 0., 1.],
+        [2., 1., 1.],
+        [0., 1., 1.],
+    ];
+    // Outward-facing quads, as two triangles each (OBJ indices from 1).
+    let quads = [
+        [1, 4, 3, 2],
+        [5, 6, 7, 8],
+        [1, 2, 6, 5],
+        [2, 3, 7, 6],
+        [3, 4, 8, 7],
+        [4, 1, 5, 8],
+    ];
+    let mut text = String::new();
+    for p in v {
+        text += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for q in quads {
+        text += &format!(
+            "f {} {} {}\nf {} {} {}\n",
+            q[0], q[1], q[2], q[0], q[2], q[3]
+        );
+    }
+    std::fs::write(&obj, text).unwrap();
+    app.path = obj.display().to_string();
+    app.import();
+    let (m, error) = app.message.clone().unwrap();
+    assert!(
+        !error && m.contains("voxelised to 32x16x16, 8192 voxels"),
+        "{m}"
+    );
+    assert_eq!(app.sculptor.count(), 8192);
     std::fs::remove_dir_all(&dir).ok();
 }
