@@ -86,6 +86,11 @@ pub fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), WavError> {
                 .map_err(read)?
         }
     };
+    if let Some(i) = interleaved.iter().position(|v| !v.is_finite()) {
+        return Err(unsupported(format!(
+            "sample {i} is not a number (NaN or infinite): the file is corrupt; export it again"
+        )));
+    }
     let mono = interleaved
         .chunks_exact(channels)
         .map(|frame| frame.iter().sum::<f64>() / channels as f64)

@@ -54,6 +54,13 @@ pub fn read_vox(path: &Path, voxel_size_m: f64) -> Result<VoxelGrid, VoxError> {
 
 /// Parses `.vox` bytes; `name` labels errors.
 pub fn parse_vox(bytes: &[u8], name: &str, voxel_size_m: f64) -> Result<VoxelGrid, VoxError> {
+    // dot_vox trusts the counts in the file and reserves memory for them before reading: a
+    // corrupt count asked for 73 GB and aborted the process (found by `tests/fuzz.rs`). Every
+    // count is checked against the bytes that follow it first.
+    structure::check(bytes).map_err(|reason| VoxError::Parse {
+        path: name.to_string(),
+        reason,
+    })?;
     // dot_vox's parser is nom-based; guard against a panic on hostile input all the same.
     let parsed =
         std::panic::catch_unwind(|| dot_vox::load_bytes(bytes)).unwrap_or(Err("parser failed"));
@@ -143,6 +150,134 @@ pub fn write_vox(grid: &VoxelGrid, path: &Path) -> Result<(), VoxError> {
         path: path.display().to_string(),
         source,
     })
+}
+
+/// A structural check of `.vox` bytes before dot_vox reads them: every chunk lies inside its
+/// parent, and every count in a chunk the format defines (voxels, dictionary entries, string
+/// lengths, frames, children, models, names) fits in the bytes that follow it, so nothing
+/// reserves more memory than the file holds. Layout: the MagicaVoxel format description
+/// (`VOX `, version, then chunks of id, content size, children size).
+mod structure {
+    /// Nesting deeper than MAIN > children is not in the format.
+    const MAX_DEPTH: usize = 4;
+
+    const BAD: &str = "a chunk or a count runs past the end of the file: the file is damaged; \
+                       export it from MagicaVoxel again";
+
+    /// `Err` with a one-line reason where the bytes cannot be a `.vox` file dot_vox may read.
+    pub fn check(bytes: &[u8]) -> Result<(), &'static str> {
+        if bytes.len() < 8 || &bytes[..4] != b"VOX " {
+            // dot_vox refuses it without reading further.
+            return Ok(());
+        }
+        chunks(&bytes[8..], 0)
+    }
+
+    fn chunks(mut b: &[u8], depth: usize) -> Result<(), &'static str> {
+        if depth > MAX_DEPTH {
+            return Err(BAD);
+        }
+        while !b.is_empty() {
+            let mut r = Reader(b);
+            let id = r.take(4)?;
+            let content = r.u32()? as usize;
+            let children = r.u32()? as usize;
+            let content = r.take(content)?;
+            let children = r.take(children)?;
+            contents(id, content)?;
+            chunks(children, depth + 1)?;
+            b = r.0;
+        }
+        Ok(())
+    }
+
+    fn contents(id: &[u8], b: &[u8]) -> Result<(), &'static str> {
+        let mut r = Reader(b);
+        match id {
+            b"XYZI" => {
+                let n = r.u32()? as usize;
+                r.take(n.checked_mul(4).ok_or(BAD)?)?;
+            }
+            b"nTRN" => {
+                r.u32()?;
+                r.dict()?;
+                r.take(12)?;
+                let frames = r.count(4)?;
+                for _ in 0..frames {
+                    r.dict()?;
+                }
+            }
+            b"nGRP" => {
+                r.u32()?;
+                r.dict()?;
+                let n = r.count(4)?;
+                r.take(n * 4)?;
+            }
+            b"nSHP" => {
+                r.u32()?;
+                r.dict()?;
+                let n = r.count(8)?;
+                for _ in 0..n {
+                    r.u32()?;
+                    r.dict()?;
+                }
+            }
+            b"MATL" | b"LAYR" | b"rCAM" => {
+                r.u32()?;
+                r.dict()?;
+            }
+            b"rOBJ" => r.dict()?,
+            b"NOTE" => {
+                let n = r.count(4)?;
+                for _ in 0..n {
+                    r.string()?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    struct Reader<'a>(&'a [u8]);
+
+    impl<'a> Reader<'a> {
+        fn take(&mut self, n: usize) -> Result<&'a [u8], &'static str> {
+            if n > self.0.len() {
+                return Err(BAD);
+            }
+            let (head, rest) = self.0.split_at(n);
+            self.0 = rest;
+            Ok(head)
+        }
+
+        fn u32(&mut self) -> Result<u32, &'static str> {
+            let b = self.take(4)?;
+            Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        }
+
+        /// A count of items at least `min_bytes` long each, checked against what is left.
+        fn count(&mut self, min_bytes: usize) -> Result<usize, &'static str> {
+            let n = self.u32()? as usize;
+            if n.saturating_mul(min_bytes) > self.0.len() {
+                return Err(BAD);
+            }
+            Ok(n)
+        }
+
+        fn string(&mut self) -> Result<(), &'static str> {
+            let n = self.u32()? as usize;
+            self.take(n).map(|_| ())
+        }
+
+        fn dict(&mut self) -> Result<(), &'static str> {
+            let n = self.count(8)?;
+            for _ in 0..n {
+                self.string()?;
+                self.string()?;
+            }
+            Ok(())
+        }
+    }
 }
 
 #[cfg(test)]
