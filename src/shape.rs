@@ -121,7 +121,21 @@ pub enum ShapeError {
 impl VoxelGrid {
     /// An empty grid.
     pub fn new(dims: [usize; 3], voxel_size_m: f64) -> Result<Self, ShapeError> {
+        // Checked before the occupancy is allocated: a corrupt file's dimensions asked for
+        // 2e17 bytes here (found by `tests/fuzz.rs`).
+        Self::check_dims(dims)?;
         Self::from_occupancy(dims, voxel_size_m, vec![false; dims.iter().product()])
+    }
+
+    /// Every side positive and at most [`MAX_GRID_DIM`].
+    fn check_dims(dims: [usize; 3]) -> Result<(), ShapeError> {
+        if dims.contains(&0) {
+            return Err(ShapeError::ZeroDimension(dims));
+        }
+        if dims.iter().any(|&d| d > MAX_GRID_DIM) {
+            return Err(ShapeError::TooLarge { dims });
+        }
+        Ok(())
     }
 
     /// A grid from an x-fastest occupancy vector.
@@ -130,12 +144,7 @@ impl VoxelGrid {
         voxel_size_m: f64,
         occupied: Vec<bool>,
     ) -> Result<Self, ShapeError> {
-        if dims.contains(&0) {
-            return Err(ShapeError::ZeroDimension(dims));
-        }
-        if dims.iter().any(|&d| d > MAX_GRID_DIM) {
-            return Err(ShapeError::TooLarge { dims });
-        }
+        Self::check_dims(dims)?;
         if !(voxel_size_m.is_finite() && voxel_size_m > 0.0) {
             return Err(ShapeError::BadVoxelSize(voxel_size_m));
         }
