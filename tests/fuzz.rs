@@ -3,11 +3,13 @@
 //!
 //! A small libFuzzer-style mutator (bit flips, random bytes, "interesting" values such as
 //! `NaN`, `1e308`, `-1` and `0xFFFFFFFF`, insertions, deletions, duplicated ranges, truncation)
-//! works from a valid seed file of each format, deterministically from a seed. Every input
-//! must come back as a value or an error: no panic, no hang (an input over
-//! [`SLOW_INPUT_S`] fails), and what parses goes on through the path the product takes next
+//! works from a valid seed file of each format, deterministically from a seed
+//! ([`fuzzing`]; the plugin's persisted state is fuzzed by `plugin/tests/state_fuzz.rs`).
+//! Every input must come back as a value or an error: no panic, no hang (an input over
+//! [`fuzzing::SLOW_INPUT_S`] fails), and what parses goes on through the path the product
+//! takes next
 //! (voxelise the mesh, cull the modes, voice the material, rasterise the spec), where a NaN or
-//! a huge size would surface. The suite runs [`DEFAULT_ITERATIONS`] inputs per format;
+//! a huge size would surface. The suite runs [`fuzzing::DEFAULT_ITERATIONS`] inputs per format;
 //! `FUZZ_ITERATIONS=1000000 cargo test --release --test fuzz` is the long run (the issue's
 //! 10^6 executions), `FUZZ_SEED` another sequence. A failure prints the format, the seed and
 //! the iteration, which reproduce the input.
@@ -15,136 +17,13 @@
 use modalforge::engine::Voicing;
 use modalforge::material::Material;
 use modalforge::modes::{CullSettings, ModeSet};
-use modalforge::rng::SplitMix64;
 use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::{mesh, vox, VoxelGrid};
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
-use std::time::Instant;
 
-/// Inputs per format in the test suite (about a second in all on one core).
-const DEFAULT_ITERATIONS: usize = 600;
-
-/// An input that takes longer than this is a hang.
-const SLOW_INPUT_S: f64 = 2.0;
-
-/// Byte strings a parser may treat specially: limits, signs, non-numbers, separators.
-const INTERESTING: &[&[u8]] = &[
-    b"NaN",
-    b"nan",
-    b"inf",
-    b"-inf",
-    b"1e308",
-    b"-1",
-    b"0",
-    b"-0",
-    b"4294967295",
-    b"18446744073709551615",
-    b"99999999",
-    b"\xff\xff\xff\xff",
-    b"\x00\x00\x00\x00",
-    b"\x7f\xff\xff\xff",
-    b"\x00\x00\x80\x7f",
-    b"\"",
-    b"[",
-    b"{",
-    b"}",
-    b",",
-    b"=",
-    b"\n",
-];
-
-struct Mutator(SplitMix64);
-
-impl Mutator {
-    fn below(&mut self, n: usize) -> usize {
-        (self.0.next_u64() % n.max(1) as u64) as usize
-    }
-
-    /// One to four random mutations of `seed`.
-    fn mutate(&mut self, seed: &[u8]) -> Vec<u8> {
-        let mut b = seed.to_vec();
-        for _ in 0..1 + self.below(4) {
-            let len = b.len();
-            match self.below(7) {
-                0 if len > 0 => {
-                    let i = self.below(len);
-                    b[i] ^= 1 << self.below(8);
-                }
-                1 if len > 0 => {
-                    let i = self.below(len);
-                    b[i] = self.0.next_u64() as u8;
-                }
-                2 => {
-                    let v = INTERESTING[self.below(INTERESTING.len())];
-                    let i = self.below(len + 1);
-                    if self.below(2) == 0 && i + v.len() <= len {
-                        b[i..i + v.len()].copy_from_slice(v);
-                    } else {
-                        b.splice(i..i, v.iter().copied());
-                    }
-                }
-                3 if len > 0 => {
-                    let i = self.below(len);
-                    let n = 1 + self.below((len - i).min(64));
-                    b.drain(i..i + n);
-                }
-                4 if len > 0 => {
-                    let i = self.below(len);
-                    let n = 1 + self.below((len - i).min(256));
-                    let copy = b[i..i + n].to_vec();
-                    let at = self.below(len + 1);
-                    b.splice(at..at, copy);
-                }
-                5 if len > 0 => b.truncate(self.below(len)),
-                _ => {
-                    let i = self.below(len + 1);
-                    let n = 1 + self.below(8);
-                    let bytes: Vec<u8> = (0..n).map(|_| self.0.next_u64() as u8).collect();
-                    b.splice(i..i, bytes);
-                }
-            }
-        }
-        b
-    }
-}
-
-fn iterations() -> usize {
-    std::env::var("FUZZ_ITERATIONS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(DEFAULT_ITERATIONS)
-}
-
-/// Runs `target` on mutations of `seed`; panics listing every input that panicked or hung.
-fn fuzz(format: &str, seed: &[u8], mut target: impl FnMut(&[u8])) {
-    let base: u64 = std::env::var("FUZZ_SEED")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1);
-    let mut m = Mutator(SplitMix64::new(base ^ format.len() as u64 * 0x9E37_79B9));
-    // The seed itself must go through.
-    target(seed);
-    let mut failures = Vec::new();
-    for i in 0..iterations() {
-        let input = m.mutate(seed);
-        let t0 = Instant::now();
-        let result = catch_unwind(AssertUnwindSafe(|| target(&input)));
-        let s = t0.elapsed().as_secs_f64();
-        if result.is_err() || s > SLOW_INPUT_S {
-            let what = if result.is_err() { "panicked" } else { "hung" };
-            failures.push(format!(
-                "{format} input {i} (FUZZ_SEED={base}) {what} after {s:.2} s, {} bytes: {:?}",
-                input.len(),
-                String::from_utf8_lossy(&input[..input.len().min(120)])
-            ));
-        }
-        if failures.len() >= 5 {
-            break;
-        }
-    }
-    assert!(failures.is_empty(), "{}", failures.join("\n"));
-}
+#[path = "common/fuzzing.rs"]
+mod fuzzing;
+use fuzzing::fuzz;
 
 /// A path in a fresh temporary directory for the file-based readers.
 fn scratch(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
@@ -162,8 +41,10 @@ fn use_grid(g: &VoxelGrid) {
 
 #[test]
 fn vox_files() {
-    let grid =
-        VoxelGrid::from_fn([5, 4, 3], 0.01, |x, y, z| (x + y + z) as usize % 3 != 0).unwrap();
+    let grid = VoxelGrid::from_fn([5, 4, 3], 0.01, |x, y, z| {
+        !((x + y + z) as usize).is_multiple_of(3)
+    })
+    .unwrap();
     let seed = vox::encode_vox(&grid).unwrap();
     fuzz("vox", &seed, |b| {
         if let Ok(g) = vox::parse_vox(b, "fuzz.vox", 0.01) {
