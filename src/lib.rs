@@ -76,6 +76,7 @@ pub mod predictor;
 pub mod rng;
 pub mod shape;
 pub mod synth;
+pub mod tuning;
 
 /// Writes a `clap::ValueEnum`'s command-line name, honouring width and alignment: the one
 /// source of the names that `--help` lists, that reports print and that `Display` shows

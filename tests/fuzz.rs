@@ -1,5 +1,6 @@
 //! Mutation fuzzing of every parser and decoder a stranger's file reaches (issue 16): `.vox`,
-//! OBJ, ASCII and binary STL, mode JSON, material TOML, WAV and the `--shape` spec syntax.
+//! OBJ, ASCII and binary STL, mode JSON, material TOML, WAV, Scala `.scl`/`.kbm` tunings and
+//! the `--shape` spec syntax.
 //!
 //! A small libFuzzer-style mutator (bit flips, random bytes, "interesting" values such as
 //! `NaN`, `1e308`, `-1` and `0xFFFFFFFF`, insertions, deletions, duplicated ranges, truncation)
@@ -203,4 +204,33 @@ fn shape_specs() {
             }
         });
     }
+}
+
+#[test]
+fn scala_files() {
+    use modalforge::tuning::{Mapping, Scale, Tuning};
+    let scl = "! just.scl\nJust major\n7\n9/8\n5/4\n4/3\n3/2\n5/3\n15/8\n2/1\n";
+    let kbm = "! white keys\n12\n0\n127\n60\n69\n440.0\n7\n0\nx\n1\nx\n2\n3\nx\n4\nx\n5\nx\n6\n";
+    // Every key of what parses is a positive finite frequency or silent.
+    let check = |t: &Tuning| {
+        assert!(t.table().iter().all(|f| f.is_finite() && *f >= 0.0));
+    };
+    let mapping = Mapping::parse(kbm, "fuzz.kbm").unwrap();
+    fuzz("scl", scl.as_bytes(), |b| {
+        if let Ok(scale) = Scale::parse(&String::from_utf8_lossy(b), "fuzz.scl") {
+            check(&Tuning {
+                scale,
+                mapping: mapping.clone(),
+            });
+        }
+    });
+    let scale = Scale::parse(scl, "fuzz.scl").unwrap();
+    fuzz("kbm", kbm.as_bytes(), |b| {
+        if let Ok(mapping) = Mapping::parse(&String::from_utf8_lossy(b), "fuzz.kbm") {
+            check(&Tuning {
+                scale: scale.clone(),
+                mapping,
+            });
+        }
+    });
 }

@@ -17,6 +17,7 @@ pub mod matching;
 mod recording;
 pub mod sculptor;
 pub mod spectrum_view;
+mod tuning;
 pub mod view3d;
 
 use crate::error::PluginError;

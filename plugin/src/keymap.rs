@@ -1,5 +1,6 @@
 //! MIDI to engine events: note-on strikes (velocity sets force and mallet hardness), the two key
-//! mappings, note-off mute, pitch bend (damping) and the mod wheel (hardness).
+//! mappings (pitch: each key's frequency from the tuning's table, [`crate::tuning`]), note-off
+//! mute, pitch bend (damping) and the mod wheel (hardness).
 //!
 //! Where it sits: called by [`crate::ModalForge::process`] for every host event; never
 //! allocates (events go into a vector with fixed capacity).
@@ -77,7 +78,7 @@ impl KeyMap {
         let e = match *event {
             NoteEvent::NoteOn { key, velocity, .. } => {
                 let Key::Number(k) = key else { return };
-                Some(Self::strike(k, velocity as f64, params, engine))
+                Self::strike(k, velocity as f64, params, engine)
             }
             NoteEvent::NoteOff { key, .. } if params.play.note_off_mute.value() => match key {
                 Key::Number(k) => Some(Event::Mute { key: k }),
@@ -101,14 +102,27 @@ impl KeyMap {
         }
     }
 
-    fn strike(key: u8, velocity: f64, params: &ModalForgeParams, engine: &AudioEngine) -> Event {
+    /// The strike of key `key`; `None` for a key the tuning leaves silent.
+    fn strike(
+        key: u8,
+        velocity: f64,
+        params: &ModalForgeParams,
+        engine: &AudioEngine,
+    ) -> Option<Event> {
         let v = velocity.clamp(0.0, 1.0);
         // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1).
         let base = engine.voicing().hardness_s;
         let hardness = base * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v));
         let (pitch, hit) = match params.play.mapping.value() {
-            // Resolved by the engine with the object and voicing in use at the strike.
-            KeyMapping::Pitch => (Pitch::Fundamental(util::midi_key_to_freq(key) as f64), None),
+            // Resolved by the engine with the object and voicing in use at the strike; the
+            // key's frequency comes from the tuning (12-TET unless a Scala file is loaded).
+            KeyMapping::Pitch => {
+                let hz = params.key_table.hz(key);
+                if hz.is_nan() || hz <= 0.0 {
+                    return None;
+                }
+                (Pitch::Fundamental(hz), None)
+            }
             KeyMapping::Positions => (
                 Pitch::Ratio(1.0),
                 Some(HitPoint {
@@ -117,7 +131,7 @@ impl KeyMap {
                 }),
             ),
         };
-        Event::Strike {
+        Some(Event::Strike {
             key: match params.play.mapping.value() {
                 KeyMapping::Pitch => key,
                 // One bank for all positions: strikes superpose on the object at its own size.
@@ -127,6 +141,6 @@ impl KeyMap {
             velocity: v,
             hit,
             hardness_s: Some(hardness.min(0.1)),
-        }
+        })
     }
 }

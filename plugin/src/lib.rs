@@ -19,6 +19,7 @@ pub mod materials;
 pub mod params;
 pub mod presets;
 pub mod sculpt;
+pub mod tuning;
 
 use editor::{EditorLink, EditorWindow};
 use keymap::KeyMap;
@@ -148,6 +149,14 @@ pub fn solve_source(
     );
     let mut last: Option<Key> = None;
     Box::new(move || {
+        // A restored project's tuning reaches the audio thread's key table here (off it). A
+        // damaged one plays 12-TET; the editor reports why when it loads one.
+        let state = params
+            .tuning
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let _ = params.key_table.sync(state.as_ref());
         let r = object_request(&params, &table)?;
         let wanted = match params.solver.answers.value() {
             AnswerChoice::Auto => Answers::Auto,

@@ -129,6 +129,12 @@ pub struct ModalForgeParams {
     /// have none.
     #[persist = "recording"]
     pub recording: Arc<RwLock<Option<modalforge::engine::recorded::RecordedObject>>>,
+    /// The Scala tuning of the "pitch" key mapping (`None`: 12-TET), persisted as its files'
+    /// texts.
+    #[persist = "tuning"]
+    pub tuning: Arc<RwLock<Option<crate::tuning::TuningState>>>,
+    /// Each key's frequency under `tuning`, for the audio thread (not a parameter).
+    pub key_table: Arc<crate::tuning::KeyTable>,
     /// Material constants and size.
     #[nested(group = "Material")]
     pub material: MaterialGroup,
@@ -265,6 +271,8 @@ impl Default for ModalForgeParams {
         Self {
             object: Arc::new(RwLock::new(crate::sculpt::Sculpt::default())),
             recording: Arc::new(RwLock::new(None)),
+            tuning: Arc::new(RwLock::new(None)),
+            key_table: Arc::new(crate::tuning::KeyTable::default()),
             material: MaterialGroup::default(),
             damping: DampingGroup::default(),
             strike: StrikeGroup::default(),

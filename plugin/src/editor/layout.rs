@@ -119,6 +119,23 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         {
             app.start_play();
         }
+        if ui
+            .button("Tuning")
+            .on_hover_text(
+                "Load a Scala tuning for the pitch key mapping: a .scl scale (the file in the \
+                 field), then optionally a .kbm keyboard mapping; saved with the project",
+            )
+            .clicked()
+        {
+            app.load_tuning();
+        }
+        if ui
+            .button("12-TET")
+            .on_hover_text("Back to standard tuning (A4 = 440 Hz)")
+            .clicked()
+        {
+            app.reset_tuning();
+        }
     });
     // The message has a line of its own, there whether or not a message is showing, so
     // nothing below the bar moves when one appears or clears.
