@@ -47,9 +47,9 @@ pub enum Excitation {
     },
 }
 
-/// Largest `|F(lambda)|` of [`Excitation::modal_factor`]: a lightly damped mode has `|F| <= 1
-/// + decay tau / 2`, so only modes that lose more than half of themselves during the contact
-/// reach it.
+/// Largest `|F(lambda)|` of [`Excitation::modal_factor`]: a lightly damped mode has `|F|` of
+/// about `1 + decay tau / 2` at most, so only modes that lose most of themselves during the
+/// contact reach it.
 pub const MAX_MODAL_FACTOR: f64 = 2.0;
 
 impl Excitation {
