@@ -144,14 +144,11 @@ pub fn run(
     hit: &Hit,
     start_e_over_rho: f64,
 ) -> Result<Matched, PluginError> {
-    let file = recording.display().to_string();
+    let Analysed { found, file, name } = analyse(recording)?;
     let refuse = |reason: String| PluginError::Recording {
         file: file.clone(),
         reason,
     };
-    let (samples, rate) = analysis::wav::read_mono(recording).map_err(|e| refuse(e.to_string()))?;
-    let found = analysis::extract(&samples, rate, &AnalysisOptions::default())
-        .map_err(|e| refuse(e.to_string()))?;
     let fit = material_fit::fit_material(
         grid,
         grid.voxel_size_m(),
@@ -167,9 +164,6 @@ pub fn run(
     let law = knob_law(&found.damping.laws).ok_or_else(|| {
         refuse("no Rayleigh or power-law damping fits its modes: too few modes".into())
     })?;
-    let name = recording
-        .file_stem()
-        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
     let mut material = Material::new(
         &format!("matched {name}"),
         fit.e_over_rho * nearest.density_kg_m3,
@@ -201,8 +195,18 @@ pub fn run(
     })
 }
 
-/// Reads `recording` and extracts its modes and the best knob damping law.
-pub fn run_play(recording: &Path) -> Result<Played, PluginError> {
+/// A recording read and analysed, with the names its messages use.
+struct Analysed {
+    /// Its modes and damping-law fits.
+    found: analysis::Analysis,
+    /// Its path, for errors.
+    file: String,
+    /// Its file stem, for the summary.
+    name: String,
+}
+
+/// Reads `recording` and extracts its modes (the default method) and damping fits.
+fn analyse(recording: &Path) -> Result<Analysed, PluginError> {
     let file = recording.display().to_string();
     let refuse = |reason: String| PluginError::Recording {
         file: file.clone(),
@@ -211,6 +215,15 @@ pub fn run_play(recording: &Path) -> Result<Played, PluginError> {
     let (samples, rate) = analysis::wav::read_mono(recording).map_err(|e| refuse(e.to_string()))?;
     let found = analysis::extract(&samples, rate, &AnalysisOptions::default())
         .map_err(|e| refuse(e.to_string()))?;
+    let name = recording
+        .file_stem()
+        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
+    Ok(Analysed { found, file, name })
+}
+
+/// Reads `recording` and extracts its modes and the best knob damping law.
+pub fn run_play(recording: &Path) -> Result<Played, PluginError> {
+    let Analysed { found, file, name } = analyse(recording)?;
     let modes: Vec<ModeRecord> = found
         .modes
         .iter()
@@ -221,15 +234,13 @@ pub fn run_play(recording: &Path) -> Result<Played, PluginError> {
         })
         .collect();
     if modes.is_empty() {
-        return Err(refuse(
-            "no modes above its noise floor: record a louder strike".into(),
-        ));
+        return Err(PluginError::Recording {
+            file,
+            reason: "no modes above its noise floor: record a louder strike".into(),
+        });
     }
     let law = knob_law(&found.damping.laws);
     let damping = law.and_then(|l| Knobs::damping_of(&l.damping()));
-    let name = recording
-        .file_stem()
-        .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned());
     let law_text = law.map_or("the damping knobs as they are".into(), |l| {
         format!(
             "{} damping within {:.0} %",
