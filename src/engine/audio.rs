@@ -139,18 +139,8 @@ impl AudioEngine {
     /// (A pitch-mode strike first makes the forces its own hit's.)
     pub fn fundamental_hz(&self) -> Option<f64> {
         let obj = self.object.as_ref()?;
-        let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let partials = obj
-            .basis
-            .eigenvalues()
-            .iter()
-            .zip(&obj.forces)
-            .enumerate()
-            .filter_map(|(i, (&l, &force))| {
-                let ratio = obj.basis.decay_ratio(i);
-                tune(&self.voicing, l, h, ratio, 0.0, self.sample_rate_hz)
-                    .map(|(f, _)| (f, force * force))
-            });
+        let partials = own_size_partials(&self.voicing, obj, self.sample_rate_hz)
+            .map(|(f, force)| (f, force * force));
         super::pitch::cluster_pitch_hz(partials)
     }
 
@@ -260,17 +250,8 @@ impl AudioEngine {
             return;
         }
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let sum: f64 = obj
-            .basis
-            .eigenvalues()
-            .iter()
-            .zip(&obj.forces)
-            .enumerate()
-            .filter_map(|(i, (&l, &force))| {
-                let ratio = obj.basis.decay_ratio(i);
-                let (f, _) = tune(&self.voicing, l, h, ratio, 0.0, self.sample_rate_hz)?;
-                Some(self.voicing.modal_gain(force, h, f).abs())
-            })
+        let sum: f64 = own_size_partials(&self.voicing, obj, self.sample_rate_hz)
+            .map(|(f, force)| self.voicing.modal_gain(force, h, f).abs())
             .sum();
         if sum.is_finite() && sum > 0.0 {
             self.level_scale = super::voicing::NORMALISED_PEAK / sum;
@@ -574,4 +555,24 @@ impl AudioEngine {
     pub(super) fn last_budget_split(&self) -> (f64, f64) {
         self.budget_split
     }
+}
+
+/// The playable modes of `obj` at its own size under `voicing`: (damped frequency in Hz, the
+/// reference modal force at the cached hit). Never allocates.
+fn own_size_partials<'a>(
+    voicing: &'a Voicing,
+    obj: &'a SolvedObject,
+    sample_rate_hz: f64,
+) -> impl Iterator<Item = (f64, f64)> + 'a {
+    let h = voicing.voxel_size_m(obj.extent, 1.0);
+    obj.basis
+        .eigenvalues()
+        .iter()
+        .zip(&obj.forces)
+        .enumerate()
+        .filter_map(move |(i, (&l, &force))| {
+            let ratio = obj.basis.decay_ratio(i);
+            let (f, _) = tune(voicing, l, h, ratio, 0.0, sample_rate_hz)?;
+            Some((f, force))
+        })
 }
