@@ -14,7 +14,8 @@ Loads target/bundled/ModalForge.vst3, sends MIDI notes, renders audio, and check
    default glass bowl on C4 sounds C4: the perceived pitch of its lowest cluster of partials
    (their power-weighted centre in log frequency, measured from the audio) within 5 cents of
    261.63 Hz;
-4. the plugin state round-trips through the host (raw_state);
+4. a Scala tuning (19-TET) stored in the project plays every key at its tuned pitch, and the
+   plugin state round-trips through the host (raw_state);
 5. a torture run (issue 16): at 22.05-192 kHz and block sizes 1 to 4096, every parameter but
    the solver's set to a random value from the host before each span, 4000 notes a second,
    the state saved mid-note at one rate and restored at another, a reset while notes ring:
@@ -23,6 +24,8 @@ Run by scripts/plugin-host-test.sh.
 """
 
 import json
+import re
+import struct
 import subprocess
 import sys
 import time
@@ -95,6 +98,48 @@ def cluster_pitch(x):
     return float(np.exp(np.sum(power[band] * np.log(f[band])) / np.sum(power[band])))
 
 
+ALPHA = ".ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+"
+def state_json(raw):
+    """The plugin's own state (nice-plug's JSON) inside JUCE's VST3 state blob: 'VC2!', the
+    XML's length, then XML whose IComponent holds the bytes in JUCE's base64 variant (its
+    own alphabet, 6 bits a character, least significant bit first), prefixed by the length."""
+    i = raw.index(b"<?xml")
+    xml = raw[i:].decode()
+    enc = re.search(r"<IComponent>([^<]*)</IComponent>", xml).group(1)
+    size, data = enc.split(".", 1)
+    size = int(size)
+    out = bytearray(size)
+    pos = 0
+    for c in data:
+        v = ALPHA.index(c)
+        for b in range(6):
+            if v >> b & 1:
+                byte, bit = divmod(pos, 8)
+                if byte < size:
+                    out[byte] |= 1 << bit
+            pos += 1
+    return bytes(out)
+def with_state_json(raw, state):
+    """`raw` with its plugin state replaced by `state` (inverse of `state_json`)."""
+    chars = []
+    nbits = len(state) * 8
+    for start in range(0, nbits, 6):
+        v = 0
+        for b in range(6):
+            pos = start + b
+            if pos < nbits and state[pos // 8] >> (pos % 8) & 1:
+                v |= 1 << b
+        chars.append(ALPHA[v])
+    enc = f"{len(state)}." + "".join(chars)
+    i = raw.index(b"<?xml")
+    xml = raw[i:].decode()
+    xml = re.sub(r"<IComponent>[^<]*</IComponent>", f"<IComponent>{enc}</IComponent>", xml)
+    body = xml.encode()
+    # The header counts the XML as JUCE wrote it; keep its relation to the body's length.
+    old = struct.unpack("<I", raw[4:8])[0]
+    return raw[:4] + struct.pack("<I", old + len(body) - len(raw[i:])) + body
+
+
 def nearest_error(fs, table):
     return np.array([np.min(np.abs(table - f)) / f for f in fs])
 
@@ -152,6 +197,26 @@ def main():
     cents = 1200 * np.log2(pitch / c4)
     print(f"default bowl on C4: perceived pitch {pitch:.2f} Hz ({cents:+.2f} cents)")
     assert abs(cents) < 5.0, f"C4 sounds {pitch:.2f} Hz, {cents:+.2f} cents off"
+
+    # A Scala tuning in the project (issue 15): 19-tone equal temperament, loaded as the
+    # editor stores it (the persisted "tuning" field), plays every key at 19-TET: keys 67 and
+    # 79 (7 and 19 steps above middle C) within 1 cent of 261.6256 * 2^(n/19), where 12-TET
+    # would put them 256 and 0 cents elsewhere.
+    raw = p.raw_state
+    plugin_state = json.loads(state_json(raw))
+    scl = "! 19edo\n19-EDO\n19\n" + "".join(f"{1200 * i / 19:.5f}\n" for i in range(1, 19))
+    plugin_state["fields"]["tuning"] = json.dumps(
+        {"scale_file": "19edo.scl", "scale": scl + "2/1\n", "mapping": None})
+    p.raw_state = with_state_json(raw, json.dumps(plugin_state).encode())
+    render(p, 40, 0.2)
+    time.sleep(0.5)
+    for key, steps in ((67, 7), (79, 19)):
+        want = c4 * 2 ** (steps / 19)
+        got = cluster_pitch(render(p, key, 6.0))
+        off = 1200 * np.log2(got / want)
+        print(f"19-TET key {key}: {got:.3f} Hz, {off:+.3f} cents from {want:.3f} Hz")
+        assert abs(off) < 1.0, f"key {key} sounds {got:.3f} Hz, {off:+.3f} cents off"
+    p.raw_state = raw
 
     # State round trip through the host.
     state = p.raw_state
