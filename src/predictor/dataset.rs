@@ -104,7 +104,7 @@ fn place(into: &VoxelGrid, shape: &VoxelGrid, rng: &mut SplitMix64, join: bool) 
 fn solid_primitive(rng: &mut SplitMix64, max_side: f64) -> VoxelGrid {
     let s = |rng: &mut SplitMix64| rng.range(3.0, max_side);
     let big = rng.range(0.6 * max_side, max_side);
-    let shape = match rng.int(0, 3) {
+    let shape = match rng.int(0, 4) {
         0 => Primitive::Box {
             x: big,
             y: s(rng),
@@ -120,10 +120,16 @@ fn solid_primitive(rng: &mut SplitMix64, max_side: f64) -> VoxelGrid {
             };
             Primitive::Cylinder { diameter, height }
         }
-        _ => Primitive::Bar {
+        3 => Primitive::Bar {
             length: big,
             width: rng.range(2.0, 8.0),
             height: rng.range(2.0, 8.0),
+        },
+        // A thin plate: the held-out plates with holes are these with holes cut.
+        _ => Primitive::Plate {
+            length: big,
+            width: rng.range(0.4 * max_side, max_side),
+            thickness: rng.range(1.0, 3.0),
         },
     };
     shape.rasterize(1.0, 1.0).expect("fits the box")
@@ -171,12 +177,17 @@ fn shell_primitive(rng: &mut SplitMix64) -> VoxelGrid {
     shape.rasterize(1.0, 1.0).expect("fits the box")
 }
 
-/// Thresholded trilinear value noise on a 5^3 lattice: a smooth random blob.
+/// Thresholded trilinear value noise on a 5^3 lattice plus a random share of a central lump
+/// (`1 - (r / r0)^2`): a smooth random blob, from a porous sponge (no lump) to a knobbly
+/// stone (a strong one).
 fn blob(rng: &mut SplitMix64) -> VoxelGrid {
     const N: usize = 5;
     let values: Vec<f64> = (0..N * N * N).map(|_| rng.range(-1.0, 1.0)).collect();
     let threshold = rng.range(-0.1, 0.3);
+    let lump = rng.range(0.0, 1.5);
+    let lump_radius = rng.range(10.0, 18.0);
     let scale = (N - 1) as f64 / INPUT_SIDE as f64;
+    let centre = INPUT_SIDE as f64 / 2.0;
     let noise = move |x: f64, y: f64, z: f64| {
         let p = [x * scale, y * scale, z * scale];
         let i = p.map(|v| (v.floor() as usize).min(N - 2));
@@ -189,7 +200,8 @@ fn blob(rng: &mut SplitMix64) -> VoxelGrid {
                 .product();
             v += w * values[(i[0] + o[0]) + N * ((i[1] + o[1]) + N * (i[2] + o[2]))];
         }
-        v
+        let r2 = (x - centre).powi(2) + (y - centre).powi(2) + (z - centre).powi(2);
+        v + lump * (1.0 - r2 / (lump_radius * lump_radius))
     };
     VoxelGrid::from_fn([INPUT_SIDE; 3], 1.0, |x, y, z| noise(x, y, z) > threshold).expect("the box")
 }
