@@ -73,6 +73,9 @@ pub enum MaterialError {
     /// No such preset.
     #[error("unknown material '{0}': use one of {list}, or E,RHO,NU[,ALPHA1,ALPHA2] in SI units", list = preset_names().join(", "))]
     Unknown(String),
+    /// The file is larger than [`crate::limits::MAX_TEXT_BYTES`].
+    #[error(transparent)]
+    FileTooLarge(crate::limits::FileTooLarge),
     /// The TOML could not be parsed.
     #[error("material file {name}: {reason}")]
     Toml {
@@ -319,10 +322,14 @@ impl Material {
     /// (SI units; Rayleigh damping, zero when omitted).
     pub fn parse(spec: &str) -> Result<Self, MaterialError> {
         if spec.to_ascii_lowercase().ends_with(".toml") {
-            let text = std::fs::read_to_string(spec).map_err(|e| MaterialError::Toml {
-                name: spec.into(),
-                reason: e.to_string(),
-            })?;
+            let text = crate::limits::read_text(std::path::Path::new(spec), "material TOML")
+                .map_err(|e| match e {
+                    crate::limits::TextReadError::TooLarge(e) => MaterialError::FileTooLarge(e),
+                    crate::limits::TextReadError::Io(e) => MaterialError::Toml {
+                        name: spec.into(),
+                        reason: e.to_string(),
+                    },
+                })?;
             return Self::from_toml(&text, spec);
         }
         if spec.contains(',') {

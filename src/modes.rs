@@ -93,6 +93,9 @@ pub enum ModeError {
 /// What is wrong with a mode file.
 #[derive(Debug, thiserror::Error)]
 pub enum ModeFileError {
+    /// The file is larger than [`crate::limits::MAX_TEXT_BYTES`].
+    #[error(transparent)]
+    TooLarge(crate::limits::FileTooLarge),
     /// The file could not be read.
     #[error("cannot read mode file {path}: {source}")]
     Io {
@@ -204,9 +207,12 @@ impl ModeSet {
 
     /// Reads and parses a JSON mode file.
     pub fn from_json_file(path: &Path) -> Result<Self, ModeFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ModeFileError::Io {
-            path: path.to_owned(),
-            source,
+        let text = crate::limits::read_text(path, "mode JSON").map_err(|e| match e {
+            crate::limits::TextReadError::TooLarge(e) => ModeFileError::TooLarge(e),
+            crate::limits::TextReadError::Io(source) => ModeFileError::Io {
+                path: path.to_owned(),
+                source,
+            },
         })?;
         Self::from_json_str(&text, path)
     }

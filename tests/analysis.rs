@@ -190,6 +190,20 @@ fn the_cli_analyzes_a_rendered_strike() {
         !bad.status.success() && err.contains("not a readable WAV") && err.lines().count() == 1,
         "{err}"
     );
+    // A recording over the size limit (sparse: no disk used) is refused before reading.
+    let big = dir.join("big.wav");
+    std::fs::File::create(&big)
+        .unwrap()
+        .set_len(modalforge::limits::MAX_WAV_BYTES + 1)
+        .unwrap();
+    let bad = run(&["analyze", big.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success()
+            && err.contains("WAV files are read up to 512 MiB")
+            && err.lines().count() == 1,
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -374,7 +374,30 @@ fn bad_objects_get_one_line_errors() {
     std::fs::write(&junk, b"definitely not a vox file").unwrap();
     let open_obj = dir.path().join("open.obj");
     std::fs::write(&open_obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    // Files one byte over their size limits (sparse: no disk is used), refused before a byte
+    // is read, with the size and the limit (`modalforge::limits`).
+    let oversized = |name: &str, limit: u64| {
+        let path = dir.path().join(name);
+        let file = std::fs::File::create(&path).unwrap();
+        file.set_len(limit + 1).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let big_stl = oversized("big.stl", modalforge::limits::MAX_MESH_BYTES);
+    let big_vox = oversized("big.vox", modalforge::limits::MAX_VOX_BYTES);
+    let big_toml = oversized("big.toml", modalforge::limits::MAX_TEXT_BYTES);
     let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["--shape", &big_stl],
+            "mesh files are read up to 256 MiB",
+        ),
+        (
+            vec!["--shape", &big_vox],
+            "MagicaVoxel files are read up to 64 MiB",
+        ),
+        (
+            vec!["--material", &big_toml],
+            "material TOML files are read up to 16 MiB",
+        ),
         (vec!["--material", "2e11,7850,0.5"], "Poisson"),
         (vec!["--material", "-1,7850,0.3"], "Young"),
         (vec!["--material", "2e11,0,0.3"], "density"),

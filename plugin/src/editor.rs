@@ -497,10 +497,13 @@ impl EditorApp {
 
     fn read_preset(&self) -> Result<Preset, PluginError> {
         let path = Path::new(self.path.trim());
-        let text = std::fs::read_to_string(path).map_err(|source| PluginError::Io {
-            action: "read",
-            path: path.into(),
-            source,
+        let text = modalforge::limits::read_text(path, "preset TOML").map_err(|e| match e {
+            modalforge::limits::TextReadError::TooLarge(e) => PluginError::FileTooLarge(e),
+            modalforge::limits::TextReadError::Io(source) => PluginError::Io {
+                action: "read",
+                path: path.into(),
+                source,
+            },
         })?;
         Preset::from_toml(&text, &path.display().to_string())
     }

@@ -23,6 +23,9 @@ pub enum PluginError {
     /// A `.vox` file that cannot be read or written.
     #[error(transparent)]
     Vox(#[from] VoxError),
+    /// A file over its size limit (`modalforge::limits`).
+    #[error(transparent)]
+    FileTooLarge(#[from] modalforge::limits::FileTooLarge),
     /// A spec names a file where a built-in shape is needed.
     #[error("'{0}' is a file, not a built-in shape: load it with Load .vox")]
     FileSpec(String),

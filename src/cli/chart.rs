@@ -450,10 +450,13 @@ pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
         source,
     })?;
     if let Some(csv) = &args.from {
-        let text = std::fs::read_to_string(csv).map_err(|source| CliError::Io {
-            action: "read",
-            path: csv.clone(),
-            source,
+        let text = modalforge::limits::read_text(csv, "chart CSV").map_err(|e| match e {
+            modalforge::limits::TextReadError::TooLarge(e) => CliError::Option(e.to_string()),
+            modalforge::limits::TextReadError::Io(source) => CliError::Io {
+                action: "read",
+                path: csv.clone(),
+                source,
+            },
         })?;
         let points =
             from_csv(&text).map_err(|e| CliError::Option(format!("{}: {e}", csv.display())))?;

@@ -72,6 +72,13 @@ pub fn read_mesh(path: &Path) -> Result<TriMesh, MeshError> {
         path: name.clone(),
         reason,
     };
+    crate::limits::check_file_size(
+        path,
+        crate::limits::MAX_MESH_BYTES,
+        "mesh",
+        "decimate it in a mesh editor first (a few hundred thousand triangles are plenty)",
+    )
+    .map_err(|e| read_err(e.to_string()))?;
     let mut soup: Vec<[[f64; 3]; 3]> = Vec::new();
     match ext.as_deref() {
         Some("obj") => {

@@ -29,6 +29,9 @@ pub enum VoxError {
     /// The file holds no model.
     #[error("{0} holds no voxel model")]
     NoModel(String),
+    /// The file is larger than [`crate::limits::MAX_VOX_BYTES`].
+    #[error(transparent)]
+    FileTooLarge(#[from] crate::limits::FileTooLarge),
     /// The grid is too large for the format (256 voxels per axis).
     #[error("a .vox model holds at most 256 voxels per axis; this grid is {0:?}")]
     TooLarge([usize; 3]),
@@ -45,6 +48,12 @@ pub enum VoxError {
 /// Reads the first model of a `.vox` file.
 pub fn read_vox(path: &Path, voxel_size_m: f64) -> Result<VoxelGrid, VoxError> {
     let name = path.display().to_string();
+    crate::limits::check_file_size(
+        path,
+        crate::limits::MAX_VOX_BYTES,
+        "MagicaVoxel",
+        "it holds more than one 256^3 model; save the one you want alone",
+    )?;
     let bytes = std::fs::read(path).map_err(|source| VoxError::Io {
         path: name.clone(),
         source,

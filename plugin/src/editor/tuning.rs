@@ -13,9 +13,13 @@ impl EditorApp {
     pub(super) fn load_tuning(&mut self) {
         let path = Path::new(self.path.trim()).to_path_buf();
         let name = path.display().to_string();
-        let text = match std::fs::read_to_string(&path) {
+        let text = match modalforge::limits::read_text(&path, "Scala") {
             Ok(t) => t,
-            Err(e) => {
+            Err(modalforge::limits::TextReadError::TooLarge(e)) => {
+                self.message = Some((e.to_string(), true));
+                return;
+            }
+            Err(modalforge::limits::TextReadError::Io(e)) => {
                 self.message = Some((format!("cannot read {name}: {e}"), true));
                 return;
             }
