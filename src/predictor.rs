@@ -96,6 +96,13 @@ impl Predictor {
     /// Loads weights from a file.
     pub fn from_file(path: &std::path::Path) -> Result<Self, PredictorError> {
         let name = path.display().to_string();
+        crate::limits::check_file_size(
+            path,
+            crate::limits::MAX_WEIGHTS_BYTES,
+            "predictor weights",
+            "give the model.bpk of a `modalforge train` checkpoint",
+        )
+        .map_err(|e| PredictorError::Weights(name.clone(), e.to_string()))?;
         let bytes = std::fs::read(path)
             .map_err(|e| PredictorError::Weights(name.clone(), e.to_string()))?;
         Self::from_bytes(&bytes, &name)
@@ -150,13 +157,16 @@ pub struct Prediction {
     /// `log10(Hz)` at the reference of each band's predicted mode (every band: the strike
     /// masks decide which play).
     pub band_log_hz: [Option<f32>; BANDS],
+    /// Per band, the logit that it holds a mode (added to every cell's mask logits).
+    band_logit: [f32; BANDS],
     /// Per-cell features, `[inputs][cell]`.
     features: Vec<f32>,
     head: Arc<Head>,
 }
 
 impl Prediction {
-    /// The head's outputs at one cell: mask logits, then log-amplitudes.
+    /// The head's outputs at one cell: mask logits (the bands' presence logits added, as in
+    /// [`ModeNet::head`]), then log-amplitudes.
     pub(crate) fn cell_outputs(&self, cell: usize) -> [f32; OUT_CHANNELS] {
         let cells = CELLS_PER_AXIS.pow(3);
         let h = &self.head;
@@ -170,6 +180,9 @@ impl Prediction {
         }
         for (o, b) in out.iter_mut().zip(&h.bias) {
             *o += b;
+        }
+        for (ch, o) in out[..MASK_CHANNELS].iter_mut().enumerate() {
+            *o += self.band_logit[ch % BANDS];
         }
         out
     }
@@ -246,6 +259,11 @@ pub fn predict_batch(
     let trunk = model.trunk(input);
     let (weights, bias) = model.head_matrix();
     let features = trunk.features.into_data().try_to_vec::<f32>().expect("f32");
+    let presence = trunk
+        .band_logit
+        .into_data()
+        .try_to_vec::<f32>()
+        .expect("f32");
     let positions = trunk
         .band_position
         .into_data()
@@ -269,6 +287,7 @@ pub fn predict_batch(
             band_log_hz: std::array::from_fn(|band| {
                 Some(metrics::band_log_hz(band, positions[k * BANDS + band] as f64) as f32)
             }),
+            band_logit: std::array::from_fn(|band| presence[k * BANDS + band]),
             features: features[k * per..(k + 1) * per].to_vec(),
             head: head.clone(),
         })

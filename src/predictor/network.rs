@@ -10,12 +10,23 @@
 //! feature map at 16^3), made lean for the CPU:
 //! - a 2x2x2 patch convolution takes the 32^3 input straight to the 16^3 strike grid;
 //! - two strided 3x3x3 convolutions go down to 8^3 and 4^3, a residual block works at 4^3;
-//! - a global branch (mean and max over the 4^3 features) predicts, per band, whether it holds
-//!   a mode and where in the band its strongest mode lies, and conditions the decoder (a mode's
-//!   band is a property of the whole shape);
+//! - a global branch (mean and max over the 4^3 features, beside [`DESCRIPTORS`] shape
+//!   descriptors) predicts, per band, whether it holds a mode and where in the band its
+//!   strongest mode lies, and conditions the decoder (a mode's band is a property of the whole
+//!   shape);
 //! - two transposed convolutions come back to 16^3, adding the encoder's features at each
 //!   scale; a 1x1 head gives, per cell, [`OUT_CHANNELS`] = 3 directions x 32 bands of mask
-//!   logits, then as many log-amplitudes.
+//!   logits, then as many log-amplitudes. A cell's mask logit is the head's plus its band's
+//!   presence logit: a strike's masks are, to 99 %, the bands that hold a mode at all (a
+//!   mode within 60 dB of a strike's loudest is heard almost everywhere), so the head only
+//!   learns where a band is *not* heard (nodes), and every struck cell teaches the presence.
+//!
+//! The descriptors are what the physics says sets the pitch: the frequencies of a plate or a
+//! shell go as `t / L^2` (thickness over size squared), of a solid as `1 / L`. They are cheap to
+//! count from the fills (the volume, the exposed faces, the wall thickness `2 V / faces`, the
+//! three extents, sorted so they are the same under the cube's axis permutations) and given in
+//! logarithms, where those laws are straight lines; a small network learns them from a few
+//! thousand objects far more surely than from pooled convolution features alone.
 //!
 //! Tensor layout: burn's `[batch, channel, depth, height, width]` with depth = z, height = y,
 //! width = x, so a flattened volume is indexed `x + n (y + n z)` as [`super::bands`] indexes
@@ -32,6 +43,8 @@ use burn::tensor::{Device, Tensor};
 pub const MASK_CHANNELS: usize = DIRECTIONS * BANDS;
 /// Head outputs per cell: mask logits, then log-amplitudes (same order).
 pub const OUT_CHANNELS: usize = 2 * MASK_CHANNELS;
+/// Shape descriptors the global branch reads beside the pooled features ([`descriptors`]).
+pub const DESCRIPTORS: usize = 6;
 
 /// Channel widths of the network (the shipped weights fix them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,7 +135,7 @@ impl ModeNet {
             down4: conv([c8, c4], 3, 2, device),
             res_a: conv([c4, c4], 3, 1, device),
             res_b: conv([c4, c4], 3, 1, device),
-            global_hidden: LinearConfig::new(2 * c4, global).init(device),
+            global_hidden: LinearConfig::new(2 * c4 + DESCRIPTORS, global).init(device),
             global_bands: LinearConfig::new(global, 2 * BANDS).init(device),
             global_film: LinearConfig::new(global, c4).init(device),
             up8: up([c4, c8], device),
@@ -136,6 +149,7 @@ impl ModeNet {
     /// The per-shape part: `fills` is `[batch, 1, 32, 32, 32]` (fill fractions, 0 outside).
     pub fn trunk(&self, fills: Tensor<5>) -> Trunk {
         let [batch, _, _, _, _] = fills.dims();
+        let shape = descriptors(&fills);
         let f16 = relu(self.patch.forward(fills));
         let f8 = relu(self.down8.forward(f16.clone()));
         let f4 = relu(self.down4.forward(f8.clone()));
@@ -147,6 +161,7 @@ impl ModeNet {
             vec![
                 flat.clone().mean_dim(2).reshape([batch, c4]),
                 flat.max_dim(2).reshape([batch, c4]),
+                shape,
             ],
             1,
         );
@@ -166,10 +181,21 @@ impl ModeNet {
         }
     }
 
-    /// The per-cell head over the whole 16^3 grid: `[batch, OUT_CHANNELS, 16, 16, 16]`
-    /// (training; inference evaluates one cell at a time, [`Trunk::strike`]).
+    /// The per-cell head over the whole 16^3 grid: `[batch, OUT_CHANNELS, 16, 16, 16]`, the
+    /// band presence logits added to the mask logits (training and scoring; the product
+    /// evaluates one cell at a time, `Prediction::strike`).
     pub fn head(&self, trunk: &Trunk) -> Tensor<5> {
-        self.head.forward(trunk.features.clone())
+        let [batch, _] = trunk.band_logit.dims();
+        let logits = trunk.band_logit.clone();
+        let presence: Tensor<5> = Tensor::cat(
+            vec![logits.clone(); DIRECTIONS]
+                .into_iter()
+                .chain(vec![logits.zeros_like(); DIRECTIONS])
+                .collect(),
+            1,
+        )
+        .reshape([batch, OUT_CHANNELS, 1, 1, 1]);
+        self.head.forward(trunk.features.clone()) + presence
     }
 
     /// The head's weights as a row-major `OUT_CHANNELS x head_in` matrix and its bias, for the
@@ -215,6 +241,45 @@ impl ModeNet {
             position_mse,
         }
     }
+}
+
+/// The shape descriptors of a batch of fills `[batch, 1, n, n, n]`: `[batch, DESCRIPTORS]`,
+/// natural logarithms of the volume (voxels), the exposed faces, the mean wall thickness
+/// `2 V / faces` (voxels: a plate's thickness) and the longest, middle and shortest extents
+/// (voxels, each the sum over its slices of their largest fill), scaled to about unit range.
+pub fn descriptors(fills: &Tensor<5>) -> Tensor<2> {
+    let [batch, _, n, _, _] = fills.dims();
+    let total = |t: Tensor<5>| t.sum_dims(&[1, 2, 3, 4]).reshape([batch, 1]);
+    let volume = total(fills.clone());
+    let mut faces = volume.zeros_like();
+    for axis in 2..5 {
+        let step = fills.clone().narrow(axis, 1, n - 1) - fills.clone().narrow(axis, 0, n - 1);
+        faces = faces
+            + total(step.abs())
+            + total(fills.clone().narrow(axis, 0, 1))
+            + total(fills.clone().narrow(axis, n - 1, 1));
+    }
+    let extent = |axis: usize| {
+        let others: Vec<usize> = (2..5).filter(|&a| a != axis).collect();
+        total(fills.clone().max_dim(others[0]).max_dim(others[1]))
+    };
+    let extents: Tensor<2> = Tensor::cat(vec![extent(2), extent(3), extent(4)], 1);
+    let longest = extents.clone().max_dim(1);
+    let shortest = extents.clone().min_dim(1);
+    let middle = extents.sum_dim(1) - longest.clone() - shortest.clone();
+    let thickness = volume.clone() * 2.0 / faces.clone().clamp_min(1.0);
+    let ln = |t: Tensor<2>, floor: f64, scale: f64| t.clamp_min(floor).log() / scale;
+    Tensor::cat(
+        vec![
+            ln(volume, 1.0, 10.0),
+            ln(faces, 1.0, 10.0),
+            ln(thickness, 0.25, 3.5),
+            ln(longest, 1.0, 3.5),
+            ln(middle, 1.0, 3.5),
+            ln(shortest, 1.0, 3.5),
+        ],
+        1,
+    )
 }
 
 /// Binary cross-entropy from logits, elementwise, in the stable form
@@ -268,3 +333,39 @@ pub const POSITION_WEIGHT: f64 = 10.0;
 
 /// Shapes of the network's input and outputs, checked at compile time against the bands.
 const _: () = assert!(INPUT_SIDE == 2 * CELLS_PER_AXIS && CELLS_PER_AXIS == 16);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::predictor::train::{input_of, PERMS};
+    use burn::tensor::TensorData;
+
+    #[test]
+    fn descriptors_count_a_plate_by_hand_under_every_axis_permutation() {
+        // A 20 x 10 x 2 plate: 400 voxels, 2 (200 + 40 + 20) = 520 exposed faces, wall
+        // thickness 2 V / faces = 800 / 520, extents 20, 10 and 2, whichever way it lies.
+        let plate = crate::shape::VoxelGrid::from_fn([20, 10, 2], 1.0, |_, _, _| true).unwrap();
+        let n = INPUT_SIDE;
+        let want = [
+            400f64.ln() / 10.0,
+            520f64.ln() / 10.0,
+            (800f64 / 520.0).ln() / 3.5,
+            20f64.ln() / 3.5,
+            10f64.ln() / 3.5,
+            2f64.ln() / 3.5,
+        ];
+        for perm in PERMS {
+            let fills = Tensor::<5>::from_data(
+                TensorData::new(input_of(&plate, perm), [1, 1, n, n, n]),
+                &Device::flex(),
+            );
+            let got = descriptors(&fills).into_data().try_to_vec::<f32>().unwrap();
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (*g as f64 - w).abs() < 1e-5,
+                    "{perm:?}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+}
