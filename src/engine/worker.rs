@@ -128,6 +128,10 @@ pub struct WorkerStatus {
 struct Mailbox {
     request: Option<ObjectRequest>,
     shutdown: bool,
+    /// The worker holds a request (taken from here, not yet answered) or an answer the ring
+    /// has not taken yet: set under this lock as the request is taken, so that
+    /// [`EngineControl::wait_idle`] never sees an empty mailbox and an idle worker in between.
+    busy: bool,
 }
 
 /// Polled by the worker for requests (see [`EngineControl::set_request_source`]).
@@ -174,6 +178,7 @@ impl EngineControl {
             mailbox: Mutex::new(Mailbox {
                 request: None,
                 shutdown: false,
+                busy: false,
             }),
             wake: Condvar::new(),
             status: Mutex::new(WorkerStatus {
@@ -253,7 +258,10 @@ impl EngineControl {
     pub fn wait_idle(&self, timeout: Duration) -> bool {
         let end = Instant::now() + timeout;
         while Instant::now() < end {
-            let waiting = lock(&self.shared.mailbox).request.is_some();
+            let waiting = {
+                let mb = lock(&self.shared.mailbox);
+                mb.request.is_some() || mb.busy
+            };
             if !waiting && lock(&self.shared.status).state == SolveState::Idle {
                 return true;
             }
@@ -290,6 +298,7 @@ impl Worker {
             self.housekeeping();
             let request = {
                 let mut mb = lock(&self.shared.mailbox);
+                mb.busy = self.pending.is_some();
                 if mb.shutdown {
                     return;
                 }
@@ -304,9 +313,17 @@ impl Worker {
                 if mb.shutdown {
                     return;
                 }
-                mb.request.take()
+                let request = mb.request.take();
+                mb.busy |= request.is_some();
+                request
             };
-            let request = request.or_else(|| lock(&self.shared.source).as_mut().and_then(|f| f()));
+            let request = request.or_else(|| {
+                let polled = lock(&self.shared.source).as_mut().and_then(|f| f());
+                if polled.is_some() {
+                    lock(&self.shared.mailbox).busy = true;
+                }
+                polled
+            });
             if let Some(request) = request {
                 self.solve(&request);
             }

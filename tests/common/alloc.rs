@@ -5,13 +5,15 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicIsize, AtomicUsize, Ordering};
 
 /// The counting allocator (forwards to the system allocator).
 pub struct Counting;
 
 static ALLOCS: AtomicUsize = AtomicUsize::new(0);
 static FREES: AtomicUsize = AtomicUsize::new(0);
+/// Bytes allocated and not yet freed, on every thread.
+static LIVE: AtomicIsize = AtomicIsize::new(0);
 
 thread_local! {
     // Const-initialised: reading it never allocates.
@@ -35,6 +37,11 @@ pub fn allocations() -> usize {
     ALLOCS.load(Ordering::SeqCst)
 }
 
+/// Heap bytes in use by the whole process (every thread), as the allocator was asked.
+pub fn live_bytes() -> isize {
+    LIVE.load(Ordering::Relaxed)
+}
+
 /// Frees made in marked sections so far.
 pub fn frees() -> usize {
     FREES.load(Ordering::SeqCst)
@@ -46,6 +53,7 @@ unsafe impl GlobalAlloc for Counting {
         if marked_now() {
             ALLOCS.fetch_add(1, Ordering::SeqCst);
         }
+        LIVE.fetch_add(layout.size() as isize, Ordering::Relaxed);
         // SAFETY: same contract as the caller's.
         unsafe { System.alloc(layout) }
     }
@@ -53,6 +61,7 @@ unsafe impl GlobalAlloc for Counting {
         if marked_now() {
             FREES.fetch_add(1, Ordering::SeqCst);
         }
+        LIVE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
         // SAFETY: same contract as the caller's.
         unsafe { System.dealloc(ptr, layout) }
     }
@@ -60,6 +69,10 @@ unsafe impl GlobalAlloc for Counting {
         if marked_now() {
             ALLOCS.fetch_add(1, Ordering::SeqCst);
         }
+        LIVE.fetch_add(
+            new_size as isize - layout.size() as isize,
+            Ordering::Relaxed,
+        );
         // SAFETY: same contract as the caller's.
         unsafe { System.realloc(ptr, layout, new_size) }
     }

@@ -3,6 +3,7 @@
 
 pub mod alloc;
 pub mod smooth;
+pub mod soak;
 
 /// Runs the `modalforge` binary with `args`; its exit status and output.
 pub fn modalforge(args: &[&str]) -> std::process::Output {
