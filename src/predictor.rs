@@ -189,13 +189,19 @@ impl Prediction {
 
     /// The band encoding of one cell written into `mask`/`log_amplitude` (layout of
     /// [`BandEncoding`], entries `cell * DIRECTIONS * BANDS ..`).
-    fn write_cell(&self, cell: usize, mask: &mut [bool], log_amplitude: &mut [f32]) {
+    fn write_cell(
+        &self,
+        cell: usize,
+        logit_threshold: f32,
+        mask: &mut [bool],
+        log_amplitude: &mut [f32],
+    ) {
         let out = self.cell_outputs(cell);
         for dir in 0..DIRECTIONS {
             for b in 0..BANDS {
                 let ch = dir * BANDS + b;
                 let i = (cell * DIRECTIONS + dir) * BANDS + b;
-                mask[i] = out[ch] > MASK_LOGIT_THRESHOLD;
+                mask[i] = out[ch] > logit_threshold;
                 log_amplitude[i] = if mask[i] {
                     out[MASK_CHANNELS + ch].clamp(0.0, 1.0)
                 } else {
@@ -205,12 +211,19 @@ impl Prediction {
         }
     }
 
-    /// The whole prediction as a [`BandEncoding`] (every struck cell decoded: for scoring).
+    /// The whole prediction as a [`BandEncoding`] (every struck cell decoded: for scoring),
+    /// masks on above [`MASK_LOGIT_THRESHOLD`].
     pub fn to_encoding(&self) -> BandEncoding {
+        self.to_encoding_at(MASK_LOGIT_THRESHOLD)
+    }
+
+    /// [`Prediction::to_encoding`] with masks on above `logit_threshold` (choosing the
+    /// operating point).
+    pub fn to_encoding_at(&self, logit_threshold: f32) -> BandEncoding {
         let entries = self.struck.len() * DIRECTIONS * BANDS;
         let (mut mask, mut log_amplitude) = (vec![false; entries], vec![0.0f32; entries]);
         for (cell, _) in self.struck.iter().enumerate().filter(|(_, &s)| s) {
-            self.write_cell(cell, &mut mask, &mut log_amplitude);
+            self.write_cell(cell, logit_threshold, &mut mask, &mut log_amplitude);
         }
         BandEncoding {
             struck: self.struck.clone(),
@@ -238,7 +251,12 @@ impl Prediction {
             band_log_hz: self.band_log_hz,
         };
         one.struck[index] = true;
-        self.write_cell(index, &mut one.mask, &mut one.log_amplitude);
+        self.write_cell(
+            index,
+            MASK_LOGIT_THRESHOLD,
+            &mut one.mask,
+            &mut one.log_amplitude,
+        );
         one.strike(cell, direction)
     }
 }
