@@ -4,6 +4,7 @@
 #   venv_need DIR PKG...       a Python venv at DIR (python3-venv from apt when missing) with
 #                              PKG... installed from PyPI; `$DIR/bin/python` runs it
 #   host_venv_need             the plugin host tests' venv: target/host-venv with pedalboard
+#                              and DawDreamer
 
 apt_need() {
   local need=() p sudo=""
@@ -32,5 +33,5 @@ venv_need() {
 }
 
 host_venv_need() {
-  venv_need target/host-venv 'pedalboard==0.9.*' mido numpy
+  venv_need target/host-venv 'pedalboard==0.9.*' 'dawdreamer==0.9.0' mido numpy
 }

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Builds the VST3/CLAP bundles and runs the plugin in a real third-party host (pedalboard),
-# checking its spectrum against `modalforge modes` (plugin/tests/host_test.py).
-# Installs what it needs: cargo-nice-plug (crates.io) and a Python venv with pedalboard.
+# Builds the VST3/CLAP bundles and runs the plugin in real third-party hosts: pedalboard,
+# checking its spectrum against `modalforge modes` and torturing it (plugin/tests/host_test.py),
+# and DawDreamer, automating every parameter every block (plugin/tests/dawdreamer_torture.py).
+# Installs what it needs: cargo-nice-plug (crates.io) and a Python venv with both hosts.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bundle.sh
@@ -12,3 +13,4 @@ source scripts/need.sh
 host_venv_need
 VENV=target/host-venv
 "$VENV/bin/python" plugin/tests/host_test.py target/bundled/ModalForge.vst3 target/release/modalforge
+"$VENV/bin/python" plugin/tests/dawdreamer_torture.py target/bundled/ModalForge.vst3
