@@ -234,3 +234,13 @@ fn scala_files() {
         }
     });
 }
+
+#[test]
+fn the_committed_corpus_is_found() {
+    // The regression inputs are read from tests/data/fuzz (a wrong path would silently run
+    // none of them).
+    for (format, at_least) in [("vox", 2), ("wav", 1), ("binary stl", 1), ("shape spec", 3)] {
+        let files = fuzzing::corpus(format);
+        assert!(files.len() >= at_least, "{format}: {}", files.len());
+    }
+}

@@ -1,7 +1,12 @@
 //! The mutation fuzzer behind `tests/fuzz.rs` and `plugin/tests/state_fuzz.rs` (included by
 //! path in both): libFuzzer-style mutations of a valid seed input, deterministic from
 //! `FUZZ_SEED`, `FUZZ_ITERATIONS` inputs per format; every input must come back without a
-//! panic or a hang. (An allocation failure aborts the process rather than panicking: the run
+//! panic or a hang.
+//!
+//! The committed corpus: `tests/data/fuzz/<format>/` (the format's name with `_` for spaces)
+//! holds inputs that once broke a reader (each file's name says how) and seeds worth
+//! keeping. Every file there is run first, and the mutations start from it as often as from
+//! the built-in seed. (An allocation failure aborts the process rather than panicking: the run
 //! then dies, which fails the test as loudly.)
 
 use modalforge::rng::SplitMix64;
@@ -97,6 +102,24 @@ impl Mutator {
     }
 }
 
+/// The committed corpus of `format` (see the module docs): file names and contents.
+pub fn corpus(format: &str) -> Vec<(String, Vec<u8>)> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/fuzz")
+        .join(format.replace(' ', "_"));
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&dir)
+        .into_iter()
+        .flatten()
+        .filter_map(|e| {
+            let path = e.ok()?.path();
+            let bytes = std::fs::read(&path).ok()?;
+            Some((path.file_name()?.to_string_lossy().into_owned(), bytes))
+        })
+        .collect();
+    files.sort();
+    files
+}
+
 fn iterations() -> usize {
     std::env::var("FUZZ_ITERATIONS")
         .ok()
@@ -115,11 +138,20 @@ pub fn fuzz(format: &str, seed: &[u8], mut target: impl FnMut(&[u8])) {
         (h ^ c as u64).wrapping_mul(0x100_0000_01b3)
     });
     let mut m = Mutator(SplitMix64::new(base ^ name));
-    // The seed itself must go through.
+    // The seed and the committed corpus must go through.
     target(seed);
+    let corpus = corpus(format);
+    for (file, bytes) in &corpus {
+        let result = catch_unwind(AssertUnwindSafe(|| target(bytes)));
+        assert!(result.is_ok(), "{format} corpus file {file} panicked");
+    }
     let mut failures = Vec::new();
     for i in 0..iterations() {
-        let input = m.mutate(seed);
+        let base_input = match m.below(2 * corpus.len() + 1) {
+            k if k < corpus.len() => &corpus[k].1[..],
+            _ => seed,
+        };
+        let input = m.mutate(base_input);
         let t0 = Instant::now();
         let result = catch_unwind(AssertUnwindSafe(|| target(&input)));
         let s = t0.elapsed().as_secs_f64();
