@@ -117,9 +117,33 @@ pub enum Event {
         /// The key.
         key: u8,
     },
+    /// Per-note expression on the key's ringing voice (MPE, CLAP and VST3 note expressions),
+    /// continuous while it rings; a new strike on the key keeps it.
+    Expression {
+        /// The key.
+        key: u8,
+        /// What changes.
+        expression: Expression,
+    },
     /// Silence everything.
     AllOff,
 }
+
+/// A per-note expression, mapped physically.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Expression {
+    /// Retune by this many semitones from the struck pitch: the object is played smaller or
+    /// larger, so every mode moves by the same ratio, continuously, each keeping its phase.
+    TuningSemitones(f64),
+    /// A hand pressing on the object, 0 (none) to 1: every mode of the note decays faster by
+    /// this share of [`Voicing::pressure_decay_per_s`].
+    Pressure(f64),
+    /// The note's gain, 0 to 4 (1 = as struck), ramped over a block.
+    Volume(f64),
+}
+
+/// Most semitones [`Expression::TuningSemitones`] moves a note (MPE's largest bend range).
+pub const MAX_TUNING_SEMITONES: f64 = 96.0;
 
 /// The size a strike plays the object at.
 #[derive(Clone, Copy, Debug, PartialEq)]

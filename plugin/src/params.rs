@@ -442,6 +442,7 @@ impl ModalForgeParams {
             output_gain: 10f64.powf(self.play.gain_db.value() as f64 / 20.0),
             normalise: true,
             mute_decay_per_s: self.play.mute_decay.value() as f64,
+            pressure_decay_per_s: 40.0,
         }
     }
 

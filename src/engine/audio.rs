@@ -12,7 +12,9 @@
 //! [`STEAL_FADE_SAMPLES`] in a spare voice. A voicing change re-tunes every ringing mode at the
 //! start of the next block, keeping its phase and amplitude: damping and E/rho/size act on notes
 //! already ringing, without a click; a hit position or mallet applies from the next strike (a
-//! strike that has happened cannot move). A new object is used from the next strike on; modes
+//! strike that has happened cannot move). Per-note expression ([`super::Expression`]) does the
+//! same to one key's voice: a tuning plays it at another size, pressure adds decay, volume
+//! scales it (ramped over a span). A new object is used from the next strike on; modes
 //! struck on the old one ring out unchanged, so a swap is seamless.
 //!
 //! Budget: at most `mode_budget` modes ring in all voices together. When a strike exceeds it,
@@ -22,7 +24,9 @@
 use super::object::SolvedObject;
 use super::voice::{SlotMode, Voice};
 use super::voicing::{tune, HitPoint, Voicing, VoicingError};
-use super::{EngineConfig, EngineStats, Event, Pitch, TimedEvent};
+use super::{
+    EngineConfig, EngineStats, Event, Expression, Pitch, TimedEvent, MAX_TUNING_SEMITONES,
+};
 use crate::synth::excitation::MAX_HARDNESS_S;
 use crate::synth::{Excitation, SimdBackend};
 use rtrb::{Consumer, Producer};
@@ -292,7 +296,30 @@ impl AudioEngine {
                     v.revoice(&self.voicing);
                 }
             }
+            Event::Expression { key, expression } => self.express(key, expression),
             Event::AllOff => self.reset(),
+        }
+    }
+
+    /// A per-note expression on `key`'s sounding voice (not one fading out after a steal).
+    /// Out-of-range values are clamped; a NaN is ignored.
+    fn express(&mut self, key: u8, expression: Expression) {
+        let voicing = self.voicing;
+        let sounding = |v: &&mut Voice| v.key == Some(key) && v.fade_left == 0;
+        for v in self.voices.iter_mut().filter(sounding) {
+            match expression {
+                Expression::TuningSemitones(st) if st.is_finite() => {
+                    let st = st.clamp(-MAX_TUNING_SEMITONES, MAX_TUNING_SEMITONES);
+                    v.bend = (st / 12.0).exp2();
+                    v.revoice(&voicing);
+                }
+                Expression::Pressure(p) if p.is_finite() => {
+                    v.pressure = p.clamp(0.0, 1.0);
+                    v.revoice(&voicing);
+                }
+                Expression::Volume(g) if g.is_finite() => v.volume = g.clamp(0.0, 4.0),
+                _ => {}
+            }
         }
     }
 
@@ -472,18 +499,26 @@ impl AudioEngine {
         let tmp = &mut self.render[..n];
         for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
             v.bank.render(tmp);
+            // The note's volume, ramped over the span from where it was.
+            let (from, to) = (v.volume_now as f32, v.volume as f32);
+            v.volume_now = v.volume;
+            let step = (to - from) / n as f32;
             if v.fade_left > 0 {
-                for (o, &x) in out.iter_mut().zip(tmp.iter()) {
+                for (k, (o, &x)) in out.iter_mut().zip(tmp.iter()).enumerate() {
                     let g = v.fade_left as f32 / STEAL_FADE_SAMPLES as f32;
-                    *o += g * x;
+                    *o += g * (from + step * (k + 1) as f32) * x;
                     v.fade_left = v.fade_left.saturating_sub(1);
                 }
                 if v.fade_left == 0 {
                     v.release();
                 }
-            } else {
+            } else if from == 1.0 && to == 1.0 {
                 for (o, &x) in out.iter_mut().zip(tmp.iter()) {
                     *o += x;
+                }
+            } else {
+                for (k, (o, &x)) in out.iter_mut().zip(tmp.iter()).enumerate() {
+                    *o += (from + step * (k + 1) as f32) * x;
                 }
             }
         }

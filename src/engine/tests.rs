@@ -13,6 +13,8 @@ use crate::synth::{Excitation, OscillatorBank};
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
 
+mod expression;
+
 const FS: f64 = 48000.0;
 
 fn steel() -> Voicing {

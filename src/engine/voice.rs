@@ -36,6 +36,14 @@ pub(crate) struct Voice {
     pub key: Option<u8>,
     /// Frequency ratio against the object's own size (the "pitch" key mapping).
     pub pitch: f64,
+    /// Per-note tuning ([`super::super::Expression::TuningSemitones`]) as a frequency ratio on
+    /// top of `pitch` (1 = none).
+    pub bend: f64,
+    /// Per-note pressure, 0 to 1: adds its share of the voicing's pressure decay.
+    pub pressure: f64,
+    /// Per-note gain the voice is heading to, and the gain it is at (ramped per span).
+    pub volume: f64,
+    pub volume_now: f64,
     /// Note-off with mute: the voicing's mute decay is added.
     pub muted: bool,
     /// Samples left of a steal fade-out (0: not fading).
@@ -57,6 +65,10 @@ impl Voice {
             bank: OscillatorBank::with_capacity(capacity, sample_rate_hz, backend),
             key: None,
             pitch: 1.0,
+            bend: 1.0,
+            pressure: 0.0,
+            volume: 1.0,
+            volume_now: 1.0,
             muted: false,
             fade_left: 0,
             peak: 0.0,
@@ -75,6 +87,10 @@ impl Voice {
     /// Frees the voice and silences its bank.
     pub fn release(&mut self) {
         self.key = None;
+        self.bend = 1.0;
+        self.pressure = 0.0;
+        self.volume = 1.0;
+        self.volume_now = 1.0;
         self.muted = false;
         self.fade_left = 0;
         self.peak = 0.0;
@@ -87,7 +103,7 @@ impl Voice {
     /// Re-tunes every ringing mode for `voicing` (kept phase and amplitude); modes that can no
     /// longer ring (above Nyquist, overdamped) are dropped.
     pub fn revoice(&mut self, voicing: &Voicing) {
-        let h = voicing.voxel_size_m(1, self.pitch);
+        let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let extra = self.extra_decay(voicing);
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();
@@ -140,13 +156,20 @@ impl Voice {
         self.bank.amplitudes(&mut self.amps[..n]);
     }
 
-    /// Decay added to every mode of this voice: the mute decay once muted.
+    /// The pitch the voice sounds at: its strike's, times its per-note tuning.
+    pub fn sounding_pitch(&self) -> f64 {
+        self.pitch * self.bend
+    }
+
+    /// Decay added to every mode of this voice: the mute decay once muted, plus the pressed
+    /// share of the pressure decay.
     fn extra_decay(&self, voicing: &Voicing) -> f64 {
-        if self.muted {
+        let mute = if self.muted {
             voicing.mute_decay_per_s
         } else {
             0.0
-        }
+        };
+        mute + self.pressure * voicing.pressure_decay_per_s
     }
 
     /// Strikes: `struck` lists one object's modes worth playing, in ascending mode index, at
@@ -161,7 +184,7 @@ impl Voice {
         velocity: f64,
         gains: &mut [f64],
     ) {
-        let h = voicing.voxel_size_m(1, self.pitch);
+        let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();
         self.tunings.clear();

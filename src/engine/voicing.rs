@@ -153,6 +153,9 @@ pub struct Voicing {
     pub normalise: bool,
     /// Extra decay applied to a muted note (note-off with mute on), 1/s.
     pub mute_decay_per_s: f64,
+    /// Extra decay of a note under full pressure ([`super::Expression::Pressure`] 1: a hand
+    /// pressed on the object), 1/s; partial pressure adds its share.
+    pub pressure_decay_per_s: f64,
 }
 
 /// What is wrong with a voicing (the engine keeps the previous one).
@@ -193,6 +196,7 @@ impl Voicing {
             output_gain: 1.0,
             normalise: false,
             mute_decay_per_s: 40.0,
+            pressure_decay_per_s: 40.0,
         })
     }
 
@@ -220,7 +224,9 @@ impl Voicing {
             && self.output_gain.is_finite()
             && self.output_gain >= 0.0
             && self.mute_decay_per_s.is_finite()
-            && self.mute_decay_per_s >= 0.0;
+            && self.mute_decay_per_s >= 0.0
+            && self.pressure_decay_per_s.is_finite()
+            && self.pressure_decay_per_s >= 0.0;
         if !ok {
             return Err(VoicingError::Range);
         }

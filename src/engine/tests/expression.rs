@@ -1,0 +1,146 @@
+//! Per-note expression (issue 15). Truths: the scaling law (a note retuned by `s` semitones
+//! has every mode at `2^(s/12)` times its frequency), the decay a pressed note gains (its
+//! share of the voicing's pressure decay, added like the mute decay), linearity (a note at
+//! volume `g` is `g` times its twin), and a twin engine that gets no expression.
+
+use super::*;
+
+fn express(key: u8, expression: Expression) -> TimedEvent {
+    TimedEvent {
+        offset: 0,
+        event: Event::Expression { key, expression },
+    }
+}
+
+fn peak(x: &[f32]) -> f32 {
+    x.iter().fold(0f32, |m, v| m.max(v.abs()))
+}
+
+#[test]
+fn tuning_moves_every_mode_by_its_ratio_keeping_the_phase() {
+    let (mut a, _ca) = ready(EngineConfig::default(), steel(), bar(24));
+    let (mut b, _cb) = ready(EngineConfig::default(), steel(), bar(24));
+    let before = render(&mut a, 640, &[strike(1, 1.0), strike(2, 1.25)]);
+    assert_eq!(
+        before,
+        render(&mut b, 640, &[strike(1, 1.0), strike(2, 1.25)])
+    );
+    let plain = a.voice_tunings(1);
+    let other = a.voice_tunings(2);
+    // Key 1 up a fifth; key 2 untouched.
+    let after_a = render(&mut a, 64, &[]);
+    let after_b = render(&mut b, 64, &[express(1, Expression::TuningSemitones(7.0))]);
+    let ratio = 2f64.powf(7.0 / 12.0);
+    for (p, t) in plain.iter().zip(b.voice_tunings(1)) {
+        // The Rayleigh shift of the damped frequency is below 1e-6 for steel.
+        assert!((t.0 / p.0 / ratio - 1.0).abs() < 1e-5, "{p:?} -> {t:?}");
+    }
+    // Frequencies and decays are those of the note struck at that pitch (the damping law
+    // at the new frequencies).
+    let (mut c, _cc) = ready(EngineConfig::default(), steel(), bar(24));
+    render(&mut c, 64, &[strike(1, ratio)]);
+    for (s, t) in c.voice_tunings(1).iter().zip(b.voice_tunings(1)) {
+        assert!((t.0 / s.0 - 1.0).abs() < 1e-12 && (t.1 / s.1 - 1.0).abs() < 1e-12);
+    }
+    assert_eq!(b.voice_tunings(2), other);
+    // No click: each mode keeps its phase and amplitude across the retune, so the step from
+    // the last sample before it to the first after it is no larger than the retuned note's
+    // own largest sample-to-sample step (5 % margin for the envelope).
+    let step = |x: &[f32]| {
+        x.windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0f32, f32::max)
+    };
+    let joined = [before[before.len() - 1], after_b[0]];
+    assert!(
+        step(&joined) <= 1.05 * step(&after_b),
+        "click at the retune"
+    );
+    assert_ne!(after_a, after_b);
+    // Back to 0 semitones: the plain tuning again.
+    render(&mut b, 64, &[express(1, Expression::TuningSemitones(0.0))]);
+    for (p, t) in plain.iter().zip(b.voice_tunings(1)) {
+        assert!((t.0 / p.0 - 1.0).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn a_restrike_and_a_bend_range_keep_the_note_where_it_is() {
+    // A bent note struck again stays bent (new modes join at the bent pitch); out-of-range
+    // tunings clamp to MAX_TUNING_SEMITONES and a NaN changes nothing.
+    let (mut audio, _c) = ready(EngineConfig::default(), steel(), bar(24));
+    render(&mut audio, 64, &[strike(1, 1.0)]);
+    let plain = audio.voice_tunings(1);
+    render(
+        &mut audio,
+        64,
+        &[express(1, Expression::TuningSemitones(-12.0))],
+    );
+    render(&mut audio, 64, &[strike(1, 1.0)]);
+    for (p, t) in plain.iter().zip(audio.voice_tunings(1)) {
+        assert!((t.0 / p.0 - 0.5).abs() < 1e-5, "{p:?} -> {t:?}");
+    }
+    render(
+        &mut audio,
+        64,
+        &[express(1, Expression::TuningSemitones(f64::NAN))],
+    );
+    for (p, t) in plain.iter().zip(audio.voice_tunings(1)) {
+        assert!((t.0 / p.0 - 0.5).abs() < 1e-5);
+    }
+    render(
+        &mut audio,
+        64,
+        &[express(1, Expression::TuningSemitones(1e6))],
+    );
+    let top = 2f64.powf(MAX_TUNING_SEMITONES / 12.0);
+    for (p, t) in plain.iter().zip(audio.voice_tunings(1)) {
+        // Modes pushed past Nyquist are dropped; the rest sit at the clamped ratio.
+        assert!((t.0 / p.0 / top - 1.0).abs() < 1e-5 || t.0 >= 0.5 * FS);
+    }
+}
+
+#[test]
+fn pressure_damps_the_note_like_a_hand() {
+    let voicing = steel();
+    let (mut audio, _c) = ready(EngineConfig::default(), voicing, bar(24));
+    render(&mut audio, 64, &[strike(1, 1.0), strike(2, 1.25)]);
+    let free: Vec<f64> = audio.voice_tunings(1).iter().map(|t| t.1).collect();
+    let other = audio.voice_tunings(2);
+    render(&mut audio, 64, &[express(1, Expression::Pressure(0.5))]);
+    for (d, t) in free.iter().zip(audio.voice_tunings(1)) {
+        let want = d + 0.5 * voicing.pressure_decay_per_s;
+        assert!((t.1 - want).abs() < 1e-9, "{d} -> {}", t.1);
+    }
+    assert_eq!(audio.voice_tunings(2), other);
+    // Released: the free decay again; over-pressed: clamped to full pressure.
+    render(&mut audio, 64, &[express(1, Expression::Pressure(0.0))]);
+    for (d, t) in free.iter().zip(audio.voice_tunings(1)) {
+        assert!((t.1 - d).abs() < 1e-9);
+    }
+    render(&mut audio, 64, &[express(1, Expression::Pressure(7.0))]);
+    for (d, t) in free.iter().zip(audio.voice_tunings(1)) {
+        assert!((t.1 - d - voicing.pressure_decay_per_s).abs() < 1e-9);
+    }
+}
+
+#[test]
+fn volume_scales_the_note_after_a_one_block_ramp() {
+    let (mut a, _ca) = ready(EngineConfig::default(), steel(), bar(24));
+    let (mut b, _cb) = ready(EngineConfig::default(), steel(), bar(24));
+    render(&mut a, 640, &[strike(1, 1.0)]);
+    render(&mut b, 640, &[strike(1, 1.0)]);
+    let plain = render(&mut a, 640, &[]);
+    let quiet = render(&mut b, 640, &[express(1, Expression::Volume(0.25))]);
+    // The first block ramps (no click: no step larger than the plain note's); from the second
+    // on the note is exactly a quarter (f32 rounding).
+    for (p, q) in plain[64..].iter().zip(&quiet[64..]) {
+        assert!((q - 0.25 * p).abs() <= 1e-6 * peak(&plain), "{p} {q}");
+    }
+    let step = |x: &[f32]| {
+        x.windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0f32, f32::max)
+    };
+    assert!(step(&quiet[..65]) <= step(&plain[..65]));
+}
