@@ -1,13 +1,24 @@
 //! MIDI to engine events: note-on strikes (velocity sets force and mallet hardness), the two key
 //! mappings (pitch: each key's frequency from the tuning's table, [`crate::tuning`]), note-off
-//! mute, pitch bend (damping) and the mod wheel (hardness).
+//! mute, and expression:
+//! - per-note expressions from CLAP and VST3 hosts, always: tuning retunes the note (the object
+//!   played at another size, [`Expression::TuningSemitones`]), pressure presses on it
+//!   ([`Expression::Pressure`]), volume scales it, brightness sets the mallet of the key's next
+//!   strike (a brighter note, a shorter contact);
+//! - MIDI channel messages, by the "MIDI Expression" parameter: "Classic", pitch bend scales
+//!   every note's damping and the mod wheel the contact time; "MPE" (lower zone), the MIDI
+//!   Polyphonic Expression specification's mapping: channel 1 is the master, whose pitch bend
+//!   moves every note by up to 2 semitones; each of channels 2-16 carries one note, whose
+//!   channel pitch bend, channel pressure and CC74 are that note's tuning (up to the bend
+//!   range), pressure and brightness. A member channel's controllers sent before its note-on
+//!   (as MPE controllers do) apply from the strike.
 //!
 //! Where it sits: called by [`crate::ModalForge::process`] for every host event; never
 //! allocates (events go into a vector with fixed capacity).
 
-use crate::params::{KeyMapping, ModalForgeParams};
-use modalforge::engine::{AudioEngine, Event, HitPoint, Pitch, TimedEvent};
-use nice_plug::midi::Key;
+use crate::params::{KeyMapping, MidiExpression, ModalForgeParams};
+use modalforge::engine::{AudioEngine, Event, Expression, HitPoint, Pitch, TimedEvent};
+use nice_plug::midi::{Channel, Key};
 use nice_plug::prelude::*;
 
 /// Lowest key of the "positions" mapping (C2); keys below wrap to it.
@@ -23,11 +34,30 @@ const ROWS: u8 = 5;
 const BEND_DAMPING_RANGE: f64 = 4.0;
 const WHEEL_HARDNESS_RANGE: f64 = 10.0;
 
+/// MPE's lower-zone master channel (MIDI channel 1).
+const MPE_MASTER: u8 = 0;
+/// Semitones of the master channel's full pitch bend (the MPE specification's default).
+const MPE_MASTER_BEND_SEMITONES: f64 = 2.0;
+/// MPE's brightness ("timbre") controller.
+const CC_BRIGHTNESS: u8 = 74;
+/// Brightness 0 to 1 moves the contact time over x4 .. x1/4 (0.5: as set).
+const BRIGHTNESS_HARDNESS_RANGE: f64 = 4.0;
+
 /// Controller state carried between blocks.
 #[derive(Clone, Copy, Debug)]
 pub struct KeyMap {
     bend: f64,
     wheel: f64,
+    /// MPE: the engine key of the note each channel last started.
+    channel_key: [Option<u8>; 16],
+    /// MPE: each channel's pitch bend, -1 to 1.
+    channel_bend: [f64; 16],
+    /// MPE: each channel's pressure, 0 to 1.
+    channel_pressure: [f64; 16],
+    /// MPE: each channel's brightness (CC74), 0 to 1.
+    channel_brightness: [f64; 16],
+    /// Note expressions: each key's brightness for its next strike, 0 to 1.
+    key_brightness: [f64; 128],
 }
 
 impl Default for KeyMap {
@@ -35,7 +65,19 @@ impl Default for KeyMap {
         Self {
             bend: 0.5,
             wheel: 0.0,
+            channel_key: [None; 16],
+            channel_bend: [0.0; 16],
+            channel_pressure: [0.0; 16],
+            channel_brightness: [0.5; 16],
+            key_brightness: [0.5; 128],
         }
+    }
+}
+
+/// Appends `event` at `offset` while `out` holds fewer than `cap` (never allocates).
+fn emit(out: &mut Vec<TimedEvent>, cap: usize, offset: usize, event: Event) {
+    if out.len() < cap {
+        out.push(TimedEvent { offset, event });
     }
 }
 
@@ -75,44 +117,171 @@ impl KeyMap {
         cap: usize,
     ) {
         let offset = event.timing() as usize;
-        let e = match *event {
-            NoteEvent::NoteOn { key, velocity, .. } => {
-                let Key::Number(k) = key else { return };
-                Self::strike(k, velocity as f64, params, engine)
+        let mpe = params.expression.midi.value() == MidiExpression::Mpe;
+        let engine_key = |k: u8| match params.play.mapping.value() {
+            KeyMapping::Pitch => k,
+            // One bank for all positions: strikes superpose on the object at its own size.
+            KeyMapping::Positions => 0,
+        };
+        let member = |channel: Channel| {
+            channel
+                .number()
+                .filter(|&c| mpe && c != MPE_MASTER)
+                .map(usize::from)
+        };
+        match *event {
+            NoteEvent::NoteOn {
+                key: Key::Number(k),
+                channel,
+                velocity,
+                ..
+            } => {
+                let brightness = match member(channel) {
+                    Some(c) => self.channel_brightness[c],
+                    None => self.key_brightness[k as usize],
+                };
+                let Some(strike) = Self::strike(k, velocity as f64, brightness, params, engine)
+                else {
+                    return;
+                };
+                emit(out, cap, offset, strike);
+                if let Some(c) = member(channel) {
+                    // The channel's controllers, set before the note, apply from its strike.
+                    self.channel_key[c] = Some(engine_key(k));
+                    let key = engine_key(k);
+                    let tuning = self.mpe_semitones(c, params);
+                    if tuning != 0.0 {
+                        let expression = Expression::TuningSemitones(tuning);
+                        emit(out, cap, offset, Event::Expression { key, expression });
+                    }
+                    if self.channel_pressure[c] > 0.0 {
+                        let expression = Expression::Pressure(self.channel_pressure[c]);
+                        emit(out, cap, offset, Event::Expression { key, expression });
+                    }
+                }
             }
-            NoteEvent::NoteOff { key, .. } if params.play.note_off_mute.value() => match key {
-                Key::Number(k) => Some(Event::Mute { key: k }),
-                Key::Wildcard => Some(Event::AllOff),
-            },
-            NoteEvent::Choke { .. } => Some(Event::AllOff),
+            NoteEvent::NoteOff { key, .. } if params.play.note_off_mute.value() => {
+                let event = match key {
+                    Key::Number(k) => Event::Mute { key: engine_key(k) },
+                    Key::Wildcard => Event::AllOff,
+                };
+                emit(out, cap, offset, event);
+            }
+            NoteEvent::Choke { .. } => emit(out, cap, offset, Event::AllOff),
+            NoteEvent::PolyTuning {
+                key: Key::Number(k),
+                tuning,
+                ..
+            } => {
+                let expression = Expression::TuningSemitones(tuning as f64);
+                emit(
+                    out,
+                    cap,
+                    offset,
+                    Event::Expression {
+                        key: engine_key(k),
+                        expression,
+                    },
+                );
+            }
+            NoteEvent::PolyPressure {
+                key: Key::Number(k),
+                pressure,
+                ..
+            } => {
+                let expression = Expression::Pressure(pressure as f64);
+                emit(
+                    out,
+                    cap,
+                    offset,
+                    Event::Expression {
+                        key: engine_key(k),
+                        expression,
+                    },
+                );
+            }
+            NoteEvent::PolyVolume {
+                key: Key::Number(k),
+                gain,
+                ..
+            } => {
+                let expression = Expression::Volume(gain as f64);
+                emit(
+                    out,
+                    cap,
+                    offset,
+                    Event::Expression {
+                        key: engine_key(k),
+                        expression,
+                    },
+                );
+            }
+            NoteEvent::PolyBrightness {
+                key: Key::Number(k),
+                brightness,
+                ..
+            } => self.key_brightness[k as usize] = (brightness as f64).clamp(0.0, 1.0),
+            NoteEvent::MidiPitchBend { value, channel, .. } if mpe => {
+                let c = channel as usize % 16;
+                self.channel_bend[c] = (2.0 * value as f64 - 1.0).clamp(-1.0, 1.0);
+                // The master's bend moves every note; a member's, its own.
+                for m in 0..16 {
+                    if m == MPE_MASTER as usize || (c != MPE_MASTER as usize && m != c) {
+                        continue;
+                    }
+                    if let Some(key) = self.channel_key[m] {
+                        let expression = Expression::TuningSemitones(self.mpe_semitones(m, params));
+                        emit(out, cap, offset, Event::Expression { key, expression });
+                    }
+                }
+            }
             NoteEvent::MidiPitchBend { value, .. } => {
                 self.bend = (value as f64).clamp(0.0, 1.0);
-                None
+            }
+            NoteEvent::MidiChannelPressure {
+                channel, pressure, ..
+            } if mpe && channel != MPE_MASTER => {
+                let c = channel as usize % 16;
+                self.channel_pressure[c] = (pressure as f64).clamp(0.0, 1.0);
+                if let Some(key) = self.channel_key[c] {
+                    let expression = Expression::Pressure(self.channel_pressure[c]);
+                    emit(out, cap, offset, Event::Expression { key, expression });
+                }
+            }
+            NoteEvent::MidiCC {
+                cc, channel, value, ..
+            } if mpe && cc == CC_BRIGHTNESS => {
+                self.channel_brightness[channel as usize % 16] = (value as f64).clamp(0.0, 1.0);
             }
             NoteEvent::MidiCC { cc, value, .. } if cc == control_change::MODULATION_MSB => {
                 self.wheel = (value as f64).clamp(0.0, 1.0);
-                None
             }
-            _ => None,
-        };
-        if let Some(event) = e {
-            if out.len() < cap {
-                out.push(TimedEvent { offset, event });
-            }
+            _ => {}
         }
+    }
+
+    /// An MPE member channel's tuning, semitones: the master's bend (2 semitones full) plus
+    /// its own (the bend range full).
+    fn mpe_semitones(&self, channel: usize, params: &ModalForgeParams) -> f64 {
+        self.channel_bend[MPE_MASTER as usize] * MPE_MASTER_BEND_SEMITONES
+            + self.channel_bend[channel] * params.expression.bend_range.value() as f64
     }
 
     /// The strike of key `key`; `None` for a key the tuning leaves silent.
     fn strike(
         key: u8,
         velocity: f64,
+        brightness: f64,
         params: &ModalForgeParams,
         engine: &AudioEngine,
     ) -> Option<Event> {
         let v = velocity.clamp(0.0, 1.0);
-        // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1).
+        // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1);
+        // brightness shortens it (x1/4 at 1) or lengthens it (x4 at 0).
         let base = engine.voicing().hardness_s;
-        let hardness = base * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v));
+        let hardness = base
+            * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v))
+            * BRIGHTNESS_HARDNESS_RANGE.powf(1.0 - 2.0 * brightness);
         let (pitch, hit) = match params.play.mapping.value() {
             // Resolved by the engine with the object and voicing in use at the strike; the
             // key's frequency comes from the tuning (12-TET unless a Scala file is loaded).

@@ -23,6 +23,24 @@ pub enum KeyMapping {
     Positions,
 }
 
+/// What MIDI channel messages do (per-note expressions from CLAP and VST3 hosts always
+/// apply, [`crate::keymap`]).
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MidiExpression {
+    /// One controller for every note: pitch bend scales the damping, the mod wheel the
+    /// mallet's contact time.
+    #[id = "classic"]
+    #[name = "Classic"]
+    Classic,
+    /// MPE, lower zone: channel 1 is the master (its pitch bend moves every note, 2
+    /// semitones), channels 2-16 carry one note each; a member channel's pitch bend retunes
+    /// its note (by the bend range), its pressure presses on it, its CC74 sets the mallet of
+    /// its next strike.
+    #[id = "mpe"]
+    #[name = "MPE"]
+    Mpe,
+}
+
 /// Which damping law is used.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DampingChoice {
@@ -116,7 +134,7 @@ fn skewed(min: f32, max: f32) -> FloatRange {
     }
 }
 
-/// Every parameter, plus the persisted object. Hosts see the parameters in five groups
+/// Every parameter, plus the persisted object. Hosts see the parameters in six groups
 /// (nice-plug's `#[nested(group = ...)]`, which keeps each parameter's id unchanged, so
 /// projects saved before the groups existed still load).
 #[derive(Params)]
@@ -150,6 +168,42 @@ pub struct ModalForgeParams {
     /// How shape edits are solved (every change re-solves).
     #[nested(group = "Solver")]
     pub solver: SolverGroup,
+    /// Per-note expression: MPE and its mapping.
+    #[nested(group = "Expression")]
+    pub expression: ExpressionGroup,
+}
+
+/// The "Expression" group.
+#[derive(Params)]
+pub struct ExpressionGroup {
+    /// What MIDI channel messages do.
+    #[id = "expr"]
+    pub midi: EnumParam<MidiExpression>,
+    /// Semitones a member channel's full pitch bend moves its note (MPE's default is 48).
+    #[id = "bendr"]
+    pub bend_range: FloatParam,
+    /// Extra decay of a note under full pressure, 1/s.
+    #[id = "pdec"]
+    pub pressure_decay: FloatParam,
+}
+
+impl Default for ExpressionGroup {
+    fn default() -> Self {
+        Self {
+            midi: EnumParam::new("MIDI Expression", MidiExpression::Classic),
+            bend_range: float(
+                "MPE Bend Range",
+                48.0,
+                FloatRange::Linear {
+                    min: 1.0,
+                    max: 96.0,
+                },
+                " st",
+                0,
+            ),
+            pressure_decay: float("Pressure Damping", 40.0, skewed(1.0, 500.0), " /s", 1),
+        }
+    }
 }
 
 /// The "Material" group.
@@ -278,6 +332,7 @@ impl Default for ModalForgeParams {
             strike: StrikeGroup::default(),
             play: PlayGroup::default(),
             solver: SolverGroup::default(),
+            expression: ExpressionGroup::default(),
         }
     }
 }
@@ -442,7 +497,7 @@ impl ModalForgeParams {
             output_gain: 10f64.powf(self.play.gain_db.value() as f64 / 20.0),
             normalise: true,
             mute_decay_per_s: self.play.mute_decay.value() as f64,
-            pressure_decay_per_s: 40.0,
+            pressure_decay_per_s: self.expression.pressure_decay.value() as f64,
         }
     }
 

@@ -6,6 +6,8 @@ use keymap::KeyMap;
 use materials::MaterialChoice;
 use sculpt::Sculpt;
 
+mod mpe;
+
 #[test]
 fn the_persisted_object_round_trips_and_rejects_bad_states() {
     let s = Sculpt::default();
@@ -117,7 +119,7 @@ fn the_solve_source_asks_once_per_change() {
 }
 
 #[test]
-fn parameter_ids_are_frozen_and_hosts_see_five_groups() {
+fn parameter_ids_are_frozen_and_hosts_see_six_groups() {
     // The ids and order as shipped before the groups existed: a project saved then stores
     // its values under these ids, so they must never change (the groups only add a path).
     const FROZEN: [(&str, &str); 27] = [
@@ -149,6 +151,12 @@ fn parameter_ids_are_frozen_and_hosts_see_five_groups() {
         ("elem", "Solver"),
         ("modes", "Solver"),
     ];
+    // Added later, after every frozen one.
+    const ADDED: [(&str, &str); 3] = [
+        ("expr", "Expression"),
+        ("bendr", "Expression"),
+        ("pdec", "Expression"),
+    ];
     let params = ModalForgeParams::default();
     let map: Vec<(String, String)> = params
         .param_map()
@@ -157,6 +165,7 @@ fn parameter_ids_are_frozen_and_hosts_see_five_groups() {
         .collect();
     let want: Vec<(String, String)> = FROZEN
         .iter()
+        .chain(&ADDED)
         .map(|(id, group)| (id.to_string(), group.to_string()))
         .collect();
     assert_eq!(map, want);

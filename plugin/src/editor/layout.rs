@@ -369,6 +369,14 @@ pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSet
     slider(ui, "Gain", &p.gain_db, setter);
     slider(ui, "Mode budget", &p.mode_budget, setter);
     ui.separator();
+    let p = &params.expression;
+    ui.heading("Expression");
+    enum_combo(ui, "MIDI", &p.midi, setter);
+    if p.midi.value() == crate::params::MidiExpression::Mpe {
+        slider(ui, "Bend range", &p.bend_range, setter);
+    }
+    slider(ui, "Pressure", &p.pressure_decay, setter);
+    ui.separator();
     let p = &params.solver;
     ui.heading("Solver");
     enum_combo(ui, "Solver", &p.kind, setter);

@@ -1,0 +1,224 @@
+//! MPE and note expressions into engine events (issue 15). Truths: the MPE specification
+//! (lower zone: channel 1 master with a 2-semitone bend, member channels one note each, their
+//! bend scaled by the bend range, channel pressure and CC74 per note) and the nice-plug note
+//! expression events' units (tuning in semitones, pressure 0-1, gain as a ratio).
+
+use super::*;
+use crate::params::MidiExpression;
+use modalforge::engine::{Engine, EngineConfig, Event, Expression};
+use nice_plug::midi::{Channel, Key, VoiceID};
+
+fn on(channel: u8, key: u8) -> NoteEvent<()> {
+    NoteEvent::NoteOn {
+        timing: 5,
+        voice_id: VoiceID::Wildcard,
+        channel: Channel::Number(channel),
+        key: Key::Number(key),
+        velocity: 0.8,
+    }
+}
+
+fn bend(channel: u8, value: f32) -> NoteEvent<()> {
+    NoteEvent::MidiPitchBend {
+        timing: 9,
+        channel,
+        value,
+    }
+}
+
+fn engine_for(params: &ModalForgeParams) -> modalforge::engine::AudioEngine {
+    let table = MaterialTable::new();
+    let (engine, control) = Engine::start(
+        48_000.0,
+        EngineConfig::default(),
+        params.voicing(&table, 1.0, 1.0),
+        Vec::new(),
+    )
+    .unwrap();
+    drop(control);
+    engine
+}
+
+/// The events one host event becomes.
+fn run(
+    keymap: &mut KeyMap,
+    params: &ModalForgeParams,
+    engine: &modalforge::engine::AudioEngine,
+    event: NoteEvent<()>,
+) -> Vec<TimedEvent> {
+    let mut out = Vec::with_capacity(32);
+    keymap.translate(&event, params, engine, &mut out, 32);
+    out
+}
+
+fn tunings(events: &[TimedEvent]) -> Vec<(u8, f64)> {
+    events
+        .iter()
+        .filter_map(|e| match e.event {
+            Event::Expression {
+                key,
+                expression: Expression::TuningSemitones(s),
+            } => Some((key, s)),
+            _ => None,
+        })
+        .collect()
+}
+
+fn hardness(events: &[TimedEvent]) -> f64 {
+    match events[0].event {
+        Event::Strike {
+            hardness_s: Some(h),
+            ..
+        } => h,
+        ref e => panic!("{e:?}"),
+    }
+}
+
+fn mpe_params() -> ModalForgeParams {
+    let params = ModalForgeParams::default();
+    // SAFETY: nothing else reads these parameters while the test sets them.
+    unsafe {
+        params
+            .expression
+            .midi
+            .as_ptr()
+            ._internal_set_normalized_value(1.0);
+    }
+    assert_eq!(params.expression.midi.value(), MidiExpression::Mpe);
+    params
+}
+
+#[test]
+fn mpe_member_channels_bend_press_and_brighten_their_own_note() {
+    let params = mpe_params();
+    let range = params.expression.bend_range.value() as f64;
+    assert_eq!(range, 48.0, "MPE's default member bend range");
+    let engine = engine_for(&params);
+    let mut keymap = KeyMap::default();
+    // A bend sent before the note (as MPE controllers do) applies from its strike, at the
+    // strike's offset: a quarter of full up is 12 semitones at the 48-semitone range.
+    assert!(run(&mut keymap, &params, &engine, bend(1, 0.625)).is_empty());
+    let events = run(&mut keymap, &params, &engine, on(1, 60));
+    assert!(matches!(events[0].event, Event::Strike { key: 60, .. }));
+    assert_eq!(tunings(&events), vec![(60, 0.25 * range)]);
+    assert!(events.iter().all(|e| e.offset == 5));
+    // A second note on another channel; each channel's bend moves only its note.
+    run(&mut keymap, &params, &engine, on(2, 64));
+    let moved = run(&mut keymap, &params, &engine, bend(2, 0.0));
+    assert_eq!(tunings(&moved), vec![(64, -range)]);
+    assert_eq!(moved[0].offset, 9);
+    // The master channel's bend (2 semitones full) moves both, on top of their own.
+    let master = run(&mut keymap, &params, &engine, bend(0, 1.0));
+    let mut got = tunings(&master);
+    got.sort_by_key(|t| t.0);
+    assert_eq!(got, vec![(60, 0.25 * range + 2.0), (64, -range + 2.0)]);
+    // Channel pressure presses on the channel's note.
+    let pressed = run(
+        &mut keymap,
+        &params,
+        &engine,
+        NoteEvent::MidiChannelPressure {
+            timing: 0,
+            channel: 1,
+            pressure: 0.75,
+        },
+    );
+    assert!(matches!(
+        pressed[..],
+        [TimedEvent {
+            event: Event::Expression {
+                key: 60,
+                expression: Expression::Pressure(p)
+            },
+            ..
+        }] if p == 0.75
+    ));
+    // CC74 sets the channel's next strike: full brightness a quarter of the contact time,
+    // none four times it (the knobs and velocity as before).
+    let plain = hardness(&run(&mut keymap, &params, &engine, on(3, 67)));
+    for (value, ratio) in [(1.0, 0.25), (0.0, 4.0)] {
+        run(
+            &mut keymap,
+            &params,
+            &engine,
+            NoteEvent::MidiCC {
+                timing: 0,
+                channel: 3,
+                cc: 74,
+                value,
+            },
+        );
+        let h = hardness(&run(&mut keymap, &params, &engine, on(3, 67)));
+        assert!((h / plain - ratio).abs() < 1e-12, "{h} vs {plain}");
+    }
+}
+
+#[test]
+fn classic_mode_keeps_bend_on_damping_and_note_expressions_always_apply() {
+    let params = ModalForgeParams::default();
+    assert_eq!(params.expression.midi.value(), MidiExpression::Classic);
+    let engine = engine_for(&params);
+    let mut keymap = KeyMap::default();
+    run(&mut keymap, &params, &engine, on(1, 60));
+    // Pitch bend is the damping controller, not a note's tuning.
+    assert!(run(&mut keymap, &params, &engine, bend(1, 1.0)).is_empty());
+    assert_eq!(keymap.controllers().0, 4.0);
+    // CLAP/VST3 note expressions, in their units.
+    let key = Key::Number(60);
+    let (voice_id, channel) = (VoiceID::Wildcard, Channel::Number(0));
+    let cases = [
+        (
+            NoteEvent::PolyTuning {
+                timing: 0,
+                voice_id,
+                channel,
+                key,
+                tuning: -3.5,
+            },
+            Expression::TuningSemitones(-3.5),
+        ),
+        (
+            NoteEvent::PolyPressure {
+                timing: 0,
+                voice_id,
+                channel,
+                key,
+                pressure: 0.5,
+            },
+            Expression::Pressure(0.5),
+        ),
+        (
+            NoteEvent::PolyVolume {
+                timing: 0,
+                voice_id,
+                channel,
+                key,
+                gain: 0.25,
+            },
+            Expression::Volume(0.25),
+        ),
+    ];
+    for (event, want) in cases {
+        let got = run(&mut keymap, &params, &engine, event);
+        assert!(
+            matches!(got[..], [TimedEvent { event: Event::Expression { key: 60, expression }, .. }] if expression == want),
+            "{got:?}"
+        );
+    }
+    // Brightness sets that key's next strike.
+    let plain = hardness(&run(&mut keymap, &params, &engine, on(0, 62)));
+    run(
+        &mut keymap,
+        &params,
+        &engine,
+        NoteEvent::PolyBrightness {
+            timing: 0,
+            voice_id,
+            channel,
+            key: Key::Number(62),
+            brightness: 1.0,
+        },
+    );
+    let bright = hardness(&run(&mut keymap, &params, &engine, on(0, 62)));
+    assert!((bright / plain - 0.25).abs() < 1e-12);
+}
