@@ -29,7 +29,9 @@ fn two_minutes_of_notes_automation_and_edits() {
     assert_eq!(r.audio_allocations, 0, "{r}");
     assert_eq!(r.audio_frees, 0, "{r}");
     assert_eq!(r.non_finite_samples, 0, "{r}");
-    assert!(r.peak > 0.0 && r.peak <= 4.0, "{r}");
+    // A runaway bound: each voice's strike is normalised to peak near 0.5 at full velocity,
+    // its volume expression at most 2 here, and 64 voices ring at most: 64.
+    assert!(r.peak > 0.0 && r.peak <= 64.0, "{r}");
     assert!(r.solve_errors.is_empty(), "{:?}", r.solve_errors);
     // About 3 edits and 40 strikes a second (random).
     assert!(

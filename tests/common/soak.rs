@@ -6,7 +6,8 @@
 //! at 48 kHz paced to the wall clock (it sleeps until each block is due, as a host's callback
 //! is called), with:
 //! - random MIDI: strikes at random keys, velocities, hit points and mallets (about 40 a
-//!   second), pitch-mapped as the plugin's pitch mode, and mutes;
+//!   second), pitch-mapped as the plugin's pitch mode, mutes, and per-note expression (tuning,
+//!   pressure and volume, about 100 changes a second, as an MPE controller sends them);
 //! - random automation of every voicing parameter (size, material, damping, hit, hardness, the
 //!   mode budget) every block;
 //! - random shape edits every 150-500 ms through the plugin's solver chain (predictor, carried
@@ -17,14 +18,12 @@
 //! process's resident memory at the start and the end, and checks that every edit was solved
 //! or superseded by a newer one (no solver error, and the last edit's object is the one that
 //! plays at the end).
-//!
-//! Not yet in it: per-note expression (MPE and note expressions, issue 15, do not exist yet).
 
 use super::alloc;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    interactive_solvers, AnswerSwitch, DampingParams, Engine, EngineConfig, Event, HitPoint,
-    ObjectRequest, Pitch, SolveState, TimedEvent, Voicing,
+    interactive_solvers, AnswerSwitch, DampingParams, Engine, EngineConfig, Event, Expression,
+    HitPoint, ObjectRequest, Pitch, SolveState, TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -74,6 +73,8 @@ pub struct SoakReport {
     pub last_edit_playing: bool,
     /// Strikes sent.
     pub strikes: u64,
+    /// Per-note expression changes sent.
+    pub expressions: u64,
     /// Samples that were not finite.
     pub non_finite_samples: u64,
     /// The loudest sample.
@@ -84,10 +85,11 @@ impl std::fmt::Display for SoakReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(
             f,
-            "blocks {} ({:.0} s of audio), strikes {}, edits {}, solver runs {}",
+            "blocks {} ({:.0} s of audio), strikes {}, expression changes {}, edits {}, solver runs {}",
             self.blocks,
             self.blocks as f64 * BLOCK as f64 / RATE_HZ,
             self.strikes,
+            self.expressions,
             self.edits,
             self.solves
         )?;
@@ -314,6 +316,21 @@ pub fn run(seconds: f64, voices: usize, seed: u64) -> SoakReport {
                     key: rng.int(36, 96) as u8,
                 },
             });
+        }
+        if rng.range(0.0, 1.0) < 100.0 * BLOCK as f64 / RATE_HZ {
+            let expression = match rng.below(3) {
+                0 => Expression::TuningSemitones(rng.range(-48.0, 48.0)),
+                1 => Expression::Pressure(rng.range(0.0, 1.0)),
+                _ => Expression::Volume(rng.range(0.0, 2.0)),
+            };
+            events.push(TimedEvent {
+                offset: rng.below(BLOCK),
+                event: Event::Expression {
+                    key: rng.int(36, 96) as u8,
+                    expression,
+                },
+            });
+            report.expressions += 1;
         }
         events.sort_by_key(|e| e.offset);
         voicing.size_m = (voicing.size_m * rng.range(0.99, 1.01)).clamp(0.05, 1.0);
