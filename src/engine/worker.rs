@@ -128,9 +128,10 @@ pub struct WorkerStatus {
 struct Mailbox {
     request: Option<ObjectRequest>,
     shutdown: bool,
-    /// The worker holds a request (taken from here, not yet answered) or an answer the ring
-    /// has not taken yet: set under this lock as the request is taken, so that
-    /// [`EngineControl::wait_idle`] never sees an empty mailbox and an idle worker in between.
+    /// The worker holds a request it took from here and has not finished solving: set under
+    /// this lock as the request is taken, so that [`EngineControl::wait_idle`] never sees an
+    /// empty mailbox and an idle worker in between. (An answer the ring has not taken yet is
+    /// not "busy": the ring empties only when the audio side runs, which a waiter may not.)
     busy: bool,
 }
 
@@ -298,7 +299,7 @@ impl Worker {
             self.housekeeping();
             let request = {
                 let mut mb = lock(&self.shared.mailbox);
-                mb.busy = self.pending.is_some();
+                mb.busy = false;
                 if mb.shutdown {
                     return;
                 }
