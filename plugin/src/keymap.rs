@@ -129,6 +129,30 @@ impl KeyMap {
                 .filter(|&c| mpe && c != MPE_MASTER)
                 .map(usize::from)
         };
+        // CLAP and VST3 note expressions, whatever the MIDI mode.
+        let note_expression = match *event {
+            NoteEvent::PolyTuning {
+                key: Key::Number(k),
+                tuning,
+                ..
+            } => Some((k, Expression::TuningSemitones(tuning as f64))),
+            NoteEvent::PolyPressure {
+                key: Key::Number(k),
+                pressure,
+                ..
+            } => Some((k, Expression::Pressure(pressure as f64))),
+            NoteEvent::PolyVolume {
+                key: Key::Number(k),
+                gain,
+                ..
+            } => Some((k, Expression::Volume(gain as f64))),
+            _ => None,
+        };
+        if let Some((k, expression)) = note_expression {
+            let key = engine_key(k);
+            emit(out, cap, offset, Event::Expression { key, expression });
+            return;
+        }
         match *event {
             NoteEvent::NoteOn {
                 key: Key::Number(k),
@@ -168,54 +192,6 @@ impl KeyMap {
                 emit(out, cap, offset, event);
             }
             NoteEvent::Choke { .. } => emit(out, cap, offset, Event::AllOff),
-            NoteEvent::PolyTuning {
-                key: Key::Number(k),
-                tuning,
-                ..
-            } => {
-                let expression = Expression::TuningSemitones(tuning as f64);
-                emit(
-                    out,
-                    cap,
-                    offset,
-                    Event::Expression {
-                        key: engine_key(k),
-                        expression,
-                    },
-                );
-            }
-            NoteEvent::PolyPressure {
-                key: Key::Number(k),
-                pressure,
-                ..
-            } => {
-                let expression = Expression::Pressure(pressure as f64);
-                emit(
-                    out,
-                    cap,
-                    offset,
-                    Event::Expression {
-                        key: engine_key(k),
-                        expression,
-                    },
-                );
-            }
-            NoteEvent::PolyVolume {
-                key: Key::Number(k),
-                gain,
-                ..
-            } => {
-                let expression = Expression::Volume(gain as f64);
-                emit(
-                    out,
-                    cap,
-                    offset,
-                    Event::Expression {
-                        key: engine_key(k),
-                        expression,
-                    },
-                );
-            }
             NoteEvent::PolyBrightness {
                 key: Key::Number(k),
                 brightness,
