@@ -25,6 +25,9 @@ pub enum WavError {
         /// What hound said.
         source: hound::Error,
     },
+    /// The file is larger than [`crate::limits::MAX_WAV_BYTES`].
+    #[error(transparent)]
+    TooLarge(#[from] crate::limits::FileTooLarge),
     /// A format hound reads but no strike can be in.
     #[error("{path}: {what}")]
     Unsupported {
@@ -53,16 +56,7 @@ pub fn read_mono(path: &Path) -> Result<(Vec<f64>, f64), WavError> {
         crate::limits::MAX_WAV_BYTES,
         "WAV",
         "cut it to the strike and mix it to mono first",
-    )
-    .map_err(|e| WavError::Unsupported {
-        path: path.to_path_buf(),
-        what: format!(
-            "{:.0} MiB; WAV files are read up to {} MiB: {}",
-            e.size as f64 / (1u64 << 20) as f64,
-            e.max >> 20,
-            e.advice
-        ),
-    })?;
+    )?;
     let mut reader = hound::WavReader::open(path).map_err(read)?;
     let spec = reader.spec();
     let channels = spec.channels as usize;
