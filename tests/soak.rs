@@ -29,9 +29,12 @@ fn two_minutes_of_notes_automation_and_edits() {
     assert_eq!(r.audio_allocations, 0, "{r}");
     assert_eq!(r.audio_frees, 0, "{r}");
     assert_eq!(r.non_finite_samples, 0, "{r}");
-    // A runaway bound: each voice's strike is normalised to peak near 0.5 at full velocity,
-    // its volume expression at most 2 here, and 64 voices ring at most: 64.
-    assert!(r.peak > 0.0 && r.peak <= 64.0, "{r}");
+    // A runaway bound, not a level check: a strike is normalised to peak near 0.5 at the
+    // object's own size, but a note played lower is a larger object, whose modes move more
+    // for the same force (amplitude ~ 1 / frequency): key 36 (65 Hz) on a 16-voxel glass
+    // bowl (2.4 kHz) is 37 times lower, a -48 semitone bend 16 times more, volume 2, 64
+    // voices: 0.5 * 37 * 16 * 2 * 64 = 38,000. A runaway grows without bound (or to NaN).
+    assert!(r.peak > 0.0 && r.peak <= 1e5, "{r}");
     assert!(r.solve_errors.is_empty(), "{:?}", r.solve_errors);
     // About 3 edits and 40 strikes a second (random).
     assert!(
