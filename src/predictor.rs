@@ -17,6 +17,7 @@ pub mod dataset;
 pub mod metrics;
 pub mod network;
 pub mod object;
+pub mod pitch_index;
 pub mod train;
 
 use bands::{BandEncoding, BandMode, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
@@ -24,6 +25,7 @@ use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 use network::{ModeNet, MASK_CHANNELS, OUT_CHANNELS};
 use object::PredictedObject;
+use pitch_index::{PitchIndex, PitchIndexError};
 use std::sync::Arc;
 
 /// Why the predictor cannot answer.
@@ -42,6 +44,18 @@ pub enum PredictorError {
 /// The shipped weights (burnpack), compiled in.
 const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/modenet.bpk");
 
+/// The shipped pitch index (training shapes' band frequencies), compiled in.
+const SHIPPED_PITCH_INDEX: &[u8] = include_bytes!("../assets/predictor/pitch-index.bin");
+
+/// The shipped pitch index, read once per process.
+pub fn shipped_pitch_index() -> Result<Arc<PitchIndex>, PitchIndexError> {
+    static INDEX: std::sync::OnceLock<Result<Arc<PitchIndex>, PitchIndexError>> =
+        std::sync::OnceLock::new();
+    INDEX
+        .get_or_init(|| PitchIndex::from_bytes(SHIPPED_PITCH_INDEX).map(Arc::new))
+        .clone()
+}
+
 /// A strike's mask is on where its logit exceeds this: probability 0.27, not 0.5. The shipped
 /// network's masks lean towards "off" (recall 37 %, precision 71 % at 0 on objects of its
 /// training families), so the operating point was chosen by the masks' F1 score on 200
@@ -51,10 +65,12 @@ const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/modenet.bpk")
 /// there, against 83 % and 47 %. The held-out families played no part in choosing it.
 pub const MASK_LOGIT_THRESHOLD: f32 = -1.0;
 
-/// The trained network, ready to predict on the CPU.
+/// The trained network, ready to predict on the CPU, and the pitch index that gives its bands'
+/// frequencies ([`pitch_index`]).
 pub struct Predictor {
     model: ModeNet,
     device: Device,
+    pitch: Option<Arc<PitchIndex>>,
 }
 
 impl std::fmt::Debug for Predictor {
@@ -77,14 +93,23 @@ impl Predictor {
         let model = ModeNet::new(network::Widths::SHIPPED, &device)
             .try_load_record(record)
             .map_err(|e| weights(&e))?;
-        Ok(Self { model, device })
+        let pitch = shipped_pitch_index().map_err(|e| {
+            PredictorError::Weights("assets/predictor/pitch-index.bin".into(), e.to_string())
+        })?;
+        Ok(Self {
+            model,
+            device,
+            pitch: Some(pitch),
+        })
     }
 
-    /// Wraps a network in memory (tests, and scoring a checkpoint without a file).
-    pub fn from_model(model: ModeNet) -> Self {
+    /// Wraps a network in memory (tests, and scoring a checkpoint without a file), with the
+    /// pitch index `pitch` (`None`: the network's own band frequencies).
+    pub fn from_model(model: ModeNet, pitch: Option<Arc<PitchIndex>>) -> Self {
         Self {
             model,
             device: Device::flex(),
+            pitch,
         }
     }
 
@@ -109,8 +134,9 @@ impl Predictor {
         Self::from_bytes(&bytes, &name)
     }
 
-    /// Predicts a shape's modes: the shape is resampled so its longest side fills the 32^3 box
-    /// (see [`object`]), then the network runs once on the calling thread's rayon pool.
+    /// Predicts a shape's modes: a shape outside the training sizes is resampled so its longest
+    /// side fills the 32^3 box ([`object::input_side`]), then the network runs once on the
+    /// calling thread's rayon pool and the pitch index gives the bands' frequencies.
     pub fn predict(
         &self,
         grid: &crate::shape::VoxelGrid,
@@ -120,21 +146,24 @@ impl Predictor {
         }
         let t0 = std::time::Instant::now();
         let longest = grid.dims().into_iter().max().unwrap_or(1);
+        let side = object::input_side(longest);
         let boxed;
-        let input = if longest == object::BOX_SIDE {
+        let input = if side == longest {
             grid
         } else {
-            boxed = crate::shape::ops::resampled(grid, object::BOX_SIDE)
-                .ok_or(PredictorError::Empty)?;
+            boxed = crate::shape::ops::resampled(grid, side).ok_or(PredictorError::Empty)?;
             &boxed
         };
-        let prediction = predict_batch(&self.model, &[input], &self.device)
+        let mut prediction = predict_batch(&self.model, &[input], &self.device)
             .pop()
             .expect("one shape in, one answer out");
+        if let Some(index) = &self.pitch {
+            prediction.retune(index, input);
+        }
         Ok(PredictedObject::new(
             prediction,
             grid.dims(),
-            object::BOX_SIDE as f64 / longest as f64,
+            side as f64 / longest as f64,
             grid.volume_voxels(),
             t0.elapsed().as_secs_f64() * 1e3,
         ))
@@ -166,6 +195,17 @@ pub struct Prediction {
 }
 
 impl Prediction {
+    /// Takes each band's frequency from `index` (the nearest training shape with a mode in
+    /// that band; see [`pitch_index`]), keeping the network's own where no indexed shape has
+    /// one. `grid` is the network's input.
+    pub fn retune(&mut self, index: &PitchIndex, grid: &crate::shape::VoxelGrid) {
+        for (own, found) in self.band_log_hz.iter_mut().zip(index.band_log_hz(grid)) {
+            if found.is_some() {
+                *own = found;
+            }
+        }
+    }
+
     /// The head's outputs at one cell: mask logits (the bands' presence logits added, as in
     /// [`ModeNet::head`]), then log-amplitudes.
     pub(crate) fn cell_outputs(&self, cell: usize) -> [f32; OUT_CHANNELS] {
@@ -346,16 +386,21 @@ mod tests {
 
     #[test]
     fn predicted_objects_scale_and_voice_like_fem_ones() {
-        // A 16-voxel-long bar is resampled 2x to fill the box: its eigenvalues (its own voxel
-        // edge as the unit) are the box's times 4 (lambda ~ h^-2, Deep-Modal eq. 11); the
+        // An 8-voxel-long bar (under the training sizes) is resampled 4x to fill the box: its
+        // eigenvalues (its own voxel edge as the unit) are the box's times 16 (lambda ~ h^-2,
+        // Deep-Modal eq. 11); a 20-voxel one goes in as it is; the
         // forces follow the network's relative gains times omega (gain = force / omega), the
         // loudest at the free-end level 2 / sqrt(volume). Any weights will do: this checks the
         // mapping, not the network.
-        let predictor =
-            Predictor::from_model(ModeNet::new(network::Widths::SHIPPED, &Device::flex()));
-        let grid = VoxelGrid::from_fn([16, 4, 3], 0.01, |_, _, _| true).unwrap();
+        let predictor = Predictor::from_model(
+            ModeNet::new(network::Widths::SHIPPED, &Device::flex()),
+            None,
+        );
+        let as_is = VoxelGrid::from_fn([20, 4, 3], 0.01, |_, _, _| true).unwrap();
+        assert_eq!(predictor.predict(&as_is).unwrap().box_per_voxel, 1.0);
+        let grid = VoxelGrid::from_fn([8, 2, 1], 0.01, |_, _, _| true).unwrap();
         let p = predictor.predict(&grid).unwrap();
-        assert_eq!(p.box_per_voxel, 2.0);
+        assert_eq!(p.box_per_voxel, 4.0);
         let box_eigs: Vec<f64> = p
             .prediction
             .band_log_hz
@@ -365,7 +410,7 @@ mod tests {
             .collect();
         assert_eq!(p.eigenvalues.len(), box_eigs.len());
         for (a, b) in p.eigenvalues.iter().zip(&box_eigs) {
-            assert!((a / b - 4.0).abs() < 1e-12);
+            assert!((a / b - 16.0).abs() < 1e-12);
         }
         let hit = crate::basis::Hit {
             point_m: [0.005, 0.02, 0.03],
@@ -374,8 +419,10 @@ mod tests {
         let mut forces = vec![0.0; p.mode_count()];
         p.reference_forces_into(&hit, 0.01, &mut forces);
         let cell = p.strike_cell(hit.point_m, 0.01).unwrap();
-        // x 0.5 box cells, y 2.0 (a tie: the lower), z 3.0: past the top cell (2).
-        assert_eq!(cell, [0, 1, 2]);
+        // The box is 32x8x4 voxels, 16x4x2 cells, all on the surface; the hit is at box cells
+        // x 1.0 (a tie between 0 and 1: the lower), y 4.0 (past the top cell, 3), z 6.0
+        // (past the top cell, 1).
+        assert_eq!(cell, [0, 3, 1]);
         let modes = p.prediction.strike(cell, [0.0, 0.0, 1.0]);
         if let Some(loud) = modes.iter().max_by(|a, b| a.gain.total_cmp(&b.gain)) {
             let bands_held: Vec<usize> = p

@@ -349,12 +349,14 @@ impl Object {
             Some(path) => modalforge::predictor::Predictor::from_file(path),
             None => modalforge::predictor::Predictor::shipped(),
         }?;
-        if self.grid.dims().into_iter().max().unwrap_or(0)
-            != modalforge::predictor::bands::INPUT_SIDE
-        {
+        let longest = self.grid.dims().into_iter().max().unwrap_or(0);
+        if modalforge::predictor::object::input_side(longest) != longest {
             eprintln!(
-                "note: the shape ({:?} voxels) is resampled to fill the predictor's {}^3 box",
+                "note: the shape ({:?} voxels) is resampled to fill the predictor's {}^3 box \
+                 (it sees shapes {}-{} voxels long as they are)",
                 self.grid.dims(),
+                modalforge::predictor::bands::INPUT_SIDE,
+                modalforge::predictor::object::MIN_UNSCALED_SIDE,
                 modalforge::predictor::bands::INPUT_SIDE
             );
         }

@@ -6,8 +6,10 @@
 
 use super::CliError;
 use modalforge::predictor::dataset::Record;
+use modalforge::predictor::pitch_index::PitchIndex;
 use modalforge::predictor::{baseline, metrics, train};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Options of `modalforge train`.
 #[derive(clap::Args, Debug)]
@@ -47,6 +49,20 @@ pub enum PredictorCommand {
     /// Score the predictor on the held-out split: mask recall and precision, amplitude MSE,
     /// pitch error, inference time; beside the nearest-shape baseline.
     Eval(EvalArgs),
+    /// Build the pitch index (the band frequencies of a dataset's training shapes, which the
+    /// predictor's bands play at) from a dataset's training split.
+    Index(IndexArgs),
+}
+
+/// Options of `modalforge predictor index`.
+#[derive(clap::Args, Debug)]
+pub struct IndexArgs {
+    /// Dataset directory (its training split is indexed).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// The index file to write (the shipped one is assets/predictor/pitch-index.bin).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
 }
 
 /// Options of `modalforge predictor eval`.
@@ -61,6 +77,67 @@ pub struct EvalArgs {
     /// Score at most this many held-out objects [default: all].
     #[arg(long, value_name = "N")]
     pub limit: Option<usize>,
+    /// Pitch index the bands play at [default: the shipped one].
+    #[arg(long, value_name = "FILE")]
+    pub pitch_index: Option<PathBuf>,
+}
+
+/// Reads a pitch index file, or the shipped one.
+fn read_pitch_index(path: Option<&Path>) -> Result<Arc<PitchIndex>, CliError> {
+    let bad = |e: &dyn std::fmt::Display, name: &str| {
+        CliError::Option(format!("pitch index {name}: {e}"))
+    };
+    match path {
+        None => modalforge::predictor::shipped_pitch_index().map_err(|e| bad(&e, "(shipped)")),
+        Some(path) => {
+            let name = path.display().to_string();
+            modalforge::limits::check_file_size(
+                path,
+                modalforge::limits::MAX_WEIGHTS_BYTES,
+                "pitch index",
+                "give a file made by `modalforge predictor index`",
+            )
+            .map_err(|e| bad(&e, &name))?;
+            let bytes = std::fs::read(path).map_err(|source| CliError::Io {
+                action: "read",
+                path: path.to_path_buf(),
+                source,
+            })?;
+            Ok(Arc::new(
+                PitchIndex::from_bytes(&bytes).map_err(|e| bad(&e, &name))?,
+            ))
+        }
+    }
+}
+
+/// Runs `modalforge predictor index`.
+pub fn index_command(args: &IndexArgs) -> Result<String, CliError> {
+    let mut index = PitchIndex::default();
+    // Decoded one at a time: a record's labels are about 2 MB.
+    for blob in train::read_split(&args.data, false)? {
+        if let Ok(r) = Record::decode(&blob) {
+            index.push(&r.grid, &r.labels);
+        }
+    }
+    if index.is_empty() {
+        return Err(CliError::Option(format!(
+            "no training records under {}: make them with `modalforge dataset --out {}`",
+            args.data.display(),
+            args.data.display()
+        )));
+    }
+    let bytes = index.to_bytes();
+    std::fs::write(&args.out, &bytes).map_err(|source| CliError::Io {
+        action: "write",
+        path: args.out.clone(),
+        source,
+    })?;
+    Ok(format!(
+        "indexed {} training shapes in {} ({} bytes)",
+        index.len(),
+        args.out.display(),
+        bytes.len()
+    ))
 }
 
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
@@ -125,16 +202,23 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
             args.data.display()
         )));
     }
+    let pitch = read_pitch_index(args.pitch_index.as_deref())?;
     let t0 = std::time::Instant::now();
-    let network = thread_pool(Some(1))?.install(|| metrics::evaluate(&model, &held, &device));
+    let played =
+        thread_pool(Some(1))?.install(|| metrics::evaluate(&model, Some(&pitch), &held, &device));
     let per_shape_ms = t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64;
+    let alone = thread_pool(Some(1))?.install(|| metrics::evaluate(&model, None, &held, &device));
+    let network = format!(
+        "{played} ({per_shape_ms:.1} ms per shape scored with its pitch index, batches of 8, one thread)\n\
+         network alone:  {alone} (the band frequencies from its own head)"
+    );
     let train: Vec<Record> = train::read_split(&args.data, false)?
         .iter()
         .filter_map(|b| Record::decode(b).ok())
         .collect();
     if train.is_empty() {
         return Ok(format!(
-            "network:        {network} ({per_shape_ms:.1} ms per shape scored, batches of 8, one thread)\n\
+            "network:        {network}\n\
              shape matching: no training records under {} to match against",
             args.data.display()
         ));
@@ -146,7 +230,7 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         .collect();
     let matched = metrics::summarise(&scores);
     Ok(format!(
-        "network:        {network} ({per_shape_ms:.1} ms per shape scored, batches of 8, one thread)\n\
+        "network:        {network}\n\
          shape matching: {matched} (nearest of {} training shapes)",
         train.len()
     ))

@@ -545,8 +545,10 @@ fn the_predictor_answers_first_and_the_answers_switch_selects() {
     // play finite audio. Any weights exercise the chain (a randomly initialised network).
     use crate::predictor::network::{ModeNet, Widths};
     use crate::predictor::Predictor;
-    let predictor =
-        Predictor::from_model(ModeNet::new(Widths::SHIPPED, &burn::tensor::Device::flex()));
+    let predictor = Predictor::from_model(
+        ModeNet::new(Widths::SHIPPED, &burn::tensor::Device::flex()),
+        None,
+    );
     let answers = AnswerSwitch::default();
     let (mut audio, control) = Engine::start(
         FS,

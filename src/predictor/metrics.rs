@@ -14,6 +14,7 @@
 use super::bands::{band_edges_hz, BandEncoding, BANDS};
 use super::dataset::Record;
 use super::network::ModeNet;
+use super::pitch_index::PitchIndex;
 use burn::tensor::Device;
 
 /// Held-out figures (see the module docs).
@@ -157,13 +158,22 @@ pub fn summarise(scores: &[ObjectScore]) -> Metrics {
 }
 
 /// Scores the network on `records` (batches of 8 on `device`, which must not be an autodiff
-/// one).
-pub fn evaluate(model: &ModeNet, records: &[Record], device: &Device) -> Metrics {
+/// one), its band frequencies from `pitch` where given (as [`super::Predictor`] plays them)
+/// or from its own head.
+pub fn evaluate(
+    model: &ModeNet,
+    pitch: Option<&PitchIndex>,
+    records: &[Record],
+    device: &Device,
+) -> Metrics {
     let mut scores = Vec::with_capacity(records.len());
     for chunk in records.chunks(8) {
         let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
         let predicted = super::predict_batch(model, &grids, device);
-        for (p, r) in predicted.iter().zip(chunk) {
+        for (mut p, r) in predicted.into_iter().zip(chunk) {
+            if let Some(index) = pitch {
+                p.retune(index, &r.grid);
+            }
             scores.push(score(&p.to_encoding(), &r.labels));
         }
     }

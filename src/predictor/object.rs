@@ -8,9 +8,10 @@
 //!
 //! The physics of the mapping:
 //! - **Scale.** The network answers at the reference (steel, the 32-voxel box
-//!   [`super::bands::REFERENCE_BOX_M`] across). A shape whose longest side is `n` voxels is
-//!   resampled to 32 first, so each box voxel is `h n / 32` of the real object (`h` its voxel
-//!   edge). A predicted band frequency `f_ref` is then the reference-unit eigenvalue
+//!   [`super::bands::REFERENCE_BOX_M`] across). A shape whose longest side `n` is within the
+//!   training sizes ([`MIN_UNSCALED_SIDE`] to 32 voxels) goes in as it is; any other is
+//!   resampled to 32 first ([`input_side`]), so each box voxel is `h n / 32` of the real object
+//!   (`h` its voxel edge). A predicted band frequency `f_ref` is then the reference-unit eigenvalue
 //!   `lambda = reference_eigenvalue(f_ref)` (voxel edge 1, E = rho = 1), and the material's
 //!   `E / (rho h_box^2)` gives the physical one: Deep-Modal's scaling laws (Jin, Li and
 //!   Manocha 2020, eq. 10-12), the same as [`crate::basis::ModeBasis::eigenvalues`].
@@ -37,7 +38,7 @@ pub struct PredictedObject {
     pub prediction: Prediction,
     /// The shape's grid dimensions, voxels (before resampling).
     pub grid_dims: [usize; 3],
-    /// Box voxels per voxel of the shape (32 over its longest side).
+    /// Box voxels per voxel of the shape (1, or 32 over its longest side: [`input_side`]).
     pub box_per_voxel: f64,
     /// Filled volume of the shape, in its voxels.
     pub volume_voxels: f64,
@@ -56,7 +57,7 @@ const FREE_END_MODE_VALUE: f64 = 2.0;
 
 impl PredictedObject {
     /// Wraps the network's answer for a shape of `grid_dims` voxels that was resampled by
-    /// `box_per_voxel` to fill the box.
+    /// `box_per_voxel` (1 where it went in as it is).
     pub fn new(
         prediction: Prediction,
         grid_dims: [usize; 3],
@@ -196,5 +197,24 @@ impl PredictedObject {
     }
 }
 
-/// The box side the shape is resampled to.
+/// The box side a shape outside the training sizes is resampled to.
 pub(super) const BOX_SIDE: usize = INPUT_SIDE;
+
+/// The shortest longest side, in voxels, at which the network sees a shape as it is. The
+/// training shapes' longest sides are 16 to 32 voxels (`modalforge dataset --seed 2`: 5,000
+/// shapes, 73 of them at 12-15), and the network and the pitch index read the absolute size (a
+/// frequency goes as `1 / L`): a held-out shape given at its own size is 26.6 cents off
+/// (`modalforge predictor eval`), resampled to fill the box 49.3 (measured through the pitch
+/// index on the same 500 shapes, with the truth moved by the size law).
+pub const MIN_UNSCALED_SIDE: usize = 16;
+
+/// The longest side, in voxels, a shape whose longest side is `longest` is given to the
+/// network at: its own within the training sizes ([`MIN_UNSCALED_SIDE`] to the box), else the
+/// box's (a larger shape must shrink to fit; a smaller one would ring above the top band).
+pub fn input_side(longest: usize) -> usize {
+    if (MIN_UNSCALED_SIDE..=BOX_SIDE).contains(&longest) {
+        longest
+    } else {
+        BOX_SIDE
+    }
+}

@@ -312,7 +312,7 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         state.seconds += t0.elapsed().as_secs_f64();
         let validation = (!held.is_empty()).then(|| {
             let eval = model.valid();
-            metrics::evaluate(&eval, &held, &device.clone().inner())
+            metrics::evaluate(&eval, None, &held, &device.clone().inner())
         });
         if let Some(v) = &validation {
             eprintln!("epoch {epoch} held-out: {v}");
