@@ -10,16 +10,16 @@ use modalforge::predictor::{metrics, Predictor};
 /// Held-out objects scored (a plate with holes, a handled cup, alternately).
 const OBJECTS: usize = 4;
 /// Bounds on the four objects' figures. The shipped weights and pitch index measure recall
-/// 51.3 %, precision 46.6 %, amplitude MSE 0.086 and a median pitch error of 13.4 cents on
+/// 53.4 %, precision 59.7 %, amplitude MSE 0.080 and a median pitch error of 25.9 cents on
 /// them (`modalforge predictor eval --limit 4` on a `--seed 1` dataset, masks at
-/// `MASK_LOGIT_THRESHOLD`; the network's own band frequencies: 42.9 cents); the bounds sit a
-/// fifth away, so a regression of the weights, the input layout, the decode, the threshold or
-/// the pitch index fails them. (These are interim figures, short of the goals:
-/// assets/predictor/README.md.)
-const RECALL_BOUND: f64 = 0.41;
-const PRECISION_BOUND: f64 = 0.37;
-const MSE_BOUND: f64 = 0.102;
-const CENTS_BOUND: f64 = 16.0;
+/// `MASK_LOGIT_THRESHOLD`; the network alone: 51.3 %, 46.6 %, 0.086, 42.9 cents); the bounds
+/// sit a fifth away, so a regression of the weights, the input layout, the decode, the
+/// threshold or the pitch index fails them. (These are interim figures, short of the issue's
+/// goals: assets/predictor/README.md.)
+const RECALL_BOUND: f64 = 0.43;
+const PRECISION_BOUND: f64 = 0.48;
+const MSE_BOUND: f64 = 0.096;
+const CENTS_BOUND: f64 = 31.0;
 
 #[test]
 fn the_shipped_weights_predict_held_out_objects_within_bounds() {

@@ -1,23 +1,27 @@
 //! The predictor's band frequencies by retrieval: each band's exact frequency is taken from the
-//! nearest training shape that has a mode in that band.
+//! nearest training shape that has a mode in that band, where that shape is a near twin.
 //!
 //! Where it sits: [`super::Predictor::predict`] runs the network (which decides, per strike,
-//! which bands sound and how loud) and then asks this index for the frequency each band plays.
-//! The network's own in-band position head never learnt (its loss stayed at the uniform
-//! distribution's value in every training run, so its frequencies are the band centres, about
-//! 41 cents off on the held-out split); a nearest shape's FEM frequencies are 26 cents off. This
-//! is Deep-Modal's shape-matching idea (Jin et al. 2020, sec. 5.2) applied to the pitch only,
-//! with an embedding that does not depend on which axis the object lies along.
+//! which bands sound and how loud) and then asks this index ([`PitchIndex::query`]) for the
+//! frequency each band plays and for a second opinion on which bands hold a mode
+//! ([`super::Prediction::retune`] applies both). The network's own in-band position head never
+//! learnt (its loss stayed at the uniform distribution's value in every training run, so its
+//! frequencies are the band centres, about 41 cents off on the held-out split); with a near
+//! twin's FEM frequencies the median is 25.8 cents. This is Deep-Modal's shape matching (Jin et
+//! al. 2020, sec. 5.2) used beside the network, with an embedding that does not depend on which
+//! axis the object lies along.
 //!
 //! The embedding: the object's axes sorted by extent (longest first, ties in x, y, z order),
 //! then its filled volume per 4x4x4-voxel block of the 32^3 input box (8^3 = 512 numbers,
 //! stored in quarter voxels as bytes). Nearness is Euclidean. Measured on the held-out split of
-//! `modalforge dataset --seed 2` (median pitch error over the bands FEM fills): the
-//! unsorted embedding of [`super::baseline`] 35.1 cents; sorted axes 26.3; sorted axes and
-//! mirrored to put the mass first 26.3; 2-voxel blocks 27.1; the median of the 3 nearest 34.3
-//! (a median of different modes lands near the band centre); adding the network's shape
-//! descriptors to the distance 26.5-27.4; a frequency shift regressed on the descriptor
-//! differences 29.1.
+//! `modalforge dataset --seed 2` (median pitch error over the bands FEM fills, every band from
+//! the index, before the near-twin gate): the unsorted embedding of [`super::baseline`] 35.1
+//! cents; sorted axes 26.3; sorted axes and mirrored to put the mass first 26.3; 2-voxel
+//! blocks 27.1; the median of the 3 nearest 34.3 (a median of different modes lands near the
+//! band centre); adding the network's shape descriptors to the distance 26.5-27.4; a frequency
+//! shift regressed on the descriptor differences 29.1. (So the embedding was chosen looking
+//! at the held-out split; the near-twin gate and the presence weight were chosen on unseen
+//! objects of the training families only.)
 //!
 //! The file (`assets/predictor/pitch-index.bin`, made by `modalforge predictor index`): the
 //! magic `MFPI`, a version byte, the shape count (u32 little-endian), then per shape its 512
@@ -174,33 +178,64 @@ impl PitchIndex {
         Ok(index)
     }
 
-    /// Per band, `log10(Hz)` at the reference of the strongest mode of the nearest indexed
-    /// shape that has one in that band (`None` where no indexed shape does). `grid` is the
-    /// network's input: at most 32^3, longest side 32.
-    pub fn band_log_hz(&self, grid: &VoxelGrid) -> [Option<f32>; BANDS] {
+    /// What the indexed shapes say of `grid` (the network's input: at most 32^3): per band,
+    /// `log10(Hz)` at the reference of the strongest mode of the nearest indexed shape that has
+    /// one in that band (`None` where no indexed shape does), and which bands the nearest
+    /// shape of all fills.
+    pub fn query(&self, grid: &VoxelGrid) -> Retrieval {
         let query = embedding(grid);
         let mut best = [(u32::MAX, EMPTY); BANDS];
-        for (e, p) in self
+        let mut nearest = (u32::MAX, 0);
+        for (i, (e, p)) in self
             .embeddings
             .chunks_exact(EMBEDDING)
             .zip(self.positions.chunks_exact(BANDS))
+            .enumerate()
         {
             let d: u32 = e
                 .iter()
                 .zip(&query)
                 .map(|(&a, &b)| (a as i32 - b as i32).pow(2) as u32)
                 .sum();
+            if d < nearest.0 {
+                nearest = (d, i);
+            }
             for (best, &position) in best.iter_mut().zip(p) {
                 if position != EMPTY && d < best.0 {
                     *best = (d, position);
                 }
             }
         }
-        std::array::from_fn(|b| {
-            let (_, p) = best[b];
-            (p != EMPTY).then(|| band_log_hz(b, p as f64 / TOP) as f32)
-        })
+        let nearest = &self.positions[nearest.1 * BANDS..(nearest.1 + 1) * BANDS];
+        Retrieval {
+            band_log_hz: std::array::from_fn(|b| {
+                let (_, p) = best[b];
+                (p != EMPTY).then(|| band_log_hz(b, p as f64 / TOP) as f32)
+            }),
+            band_distance: {
+                let norm = query
+                    .iter()
+                    .map(|&q| (q as f32).powi(2))
+                    .sum::<f32>()
+                    .max(1.0);
+                best.map(|(d, _)| d as f32 / norm)
+            },
+            nearest_fills: std::array::from_fn(|b| nearest.get(b).is_some_and(|&p| p != EMPTY)),
+        }
     }
+}
+
+/// What [`PitchIndex::query`] finds for a shape.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Retrieval {
+    /// Per band, `log10(Hz)` at the reference of the strongest mode of the nearest indexed
+    /// shape with a mode in that band.
+    pub band_log_hz: [Option<f32>; BANDS],
+    /// Per band, the squared embedding distance to that shape over the query's squared norm
+    /// (0 for the shape itself; huge where no shape fills the band).
+    pub band_distance: [f32; BANDS],
+    /// Per band, whether the nearest indexed shape has a mode in it.
+    pub nearest_fills: [bool; BANDS],
 }
 
 #[cfg(test)]
@@ -246,14 +281,17 @@ mod tests {
         let index = PitchIndex::from_labels([(&bar, &la), (&cube, &lb)]);
         let back = PitchIndex::from_bytes(&index.to_bytes()).unwrap();
         assert_eq!(back, index);
-        let got = back.band_log_hz(&bar);
+        let got = back.query(&bar).band_log_hz;
         assert!((got[3].unwrap() - a[3].unwrap()).abs() < 1e-6);
         assert!((got[7].unwrap() - b[7].unwrap()).abs() < 1e-6);
         assert!(got
             .iter()
             .enumerate()
             .all(|(k, g)| g.is_some() == (k == 3 || k == 7)));
-        assert!((back.band_log_hz(&cube)[3].unwrap() - b[3].unwrap()).abs() < 1e-6);
+        assert!((back.query(&cube).band_log_hz[3].unwrap() - b[3].unwrap()).abs() < 1e-6);
+        // The bar's nearest shape is itself, which fills band 3 only.
+        let fills = back.query(&bar).nearest_fills;
+        assert!(fills.iter().enumerate().all(|(k, &f)| f == (k == 3)));
     }
 
     #[test]
