@@ -24,7 +24,7 @@ fn two_minutes_of_notes_automation_and_edits() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(SECONDS);
-    let r = common::soak::run(seconds, 64, 1);
+    let r = common::soak::run(seconds, 64, 1, false);
     println!("{r}");
     assert_eq!(r.audio_allocations, 0, "{r}");
     assert_eq!(r.audio_frees, 0, "{r}");

@@ -79,6 +79,8 @@ pub struct SoakReport {
     pub non_finite_samples: u64,
     /// The loudest sample.
     pub peak: f32,
+    /// Whether the audio thread ran on the real-time FIFO scheduler (asked for by the bench).
+    pub realtime: bool,
 }
 
 impl std::fmt::Display for SoakReport {
@@ -95,8 +97,16 @@ impl std::fmt::Display for SoakReport {
         )?;
         writeln!(
             f,
-            "block time: worst {:.0} us, 99.9th percentile {:.0} us, deadline {:.0} us, {} misses",
-            self.worst_block_us, self.p999_block_us, self.deadline_us, self.deadline_misses
+            "block time: worst {:.0} us, 99.9th percentile {:.0} us, deadline {:.0} us, {} misses ({})",
+            self.worst_block_us,
+            self.p999_block_us,
+            self.deadline_us,
+            self.deadline_misses,
+            if self.realtime {
+                "audio thread on SCHED_FIFO, as hosts run it"
+            } else {
+                "audio thread at normal priority"
+            }
         )?;
         writeln!(
             f,
@@ -121,8 +131,36 @@ impl std::fmt::Display for SoakReport {
     }
 }
 
-/// Resident memory of this process, bytes (Linux `/proc/self/statm`; 0 elsewhere).
+/// Puts the calling thread on the real-time FIFO scheduler at `priority` (1-99), as hosts run
+/// their audio threads (JACK, CoreAudio, WASAPI's pro-audio class), so that other work on the
+/// machine cannot preempt a block. Whether it was granted (it needs root, `CAP_SYS_NICE` or an
+/// `rtprio` limit; Linux only).
+pub fn realtime_priority(priority: i32) -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        let param = libc::sched_param {
+            sched_priority: priority,
+        };
+        // SAFETY: `pthread_self()` is the calling thread's own live handle, and `param` is a
+        // valid `sched_param` that outlives the call.
+        unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) == 0 }
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = priority;
+        false
+    }
+}
+
+/// Resident memory of this process, bytes (Linux `/proc/self/statm`; 0 elsewhere), after
+/// glibc has returned its free memory to the system (`malloc_trim`): freed blocks the
+/// allocator keeps cached are not growth.
 pub fn resident_bytes() -> u64 {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only walks glibc's own arenas under their locks; any thread may call it.
+    unsafe {
+        libc::malloc_trim(0);
+    }
     std::fs::read_to_string("/proc/self/statm")
         .ok()
         .and_then(|s| s.split_whitespace().nth(1)?.parse::<u64>().ok())
@@ -205,8 +243,10 @@ fn settle(
     audio.process(out, &[]);
 }
 
-/// Runs a soak of `seconds` of real time with `voices` voices; `seed` makes the session.
-pub fn run(seconds: f64, voices: usize, seed: u64) -> SoakReport {
+/// Runs a soak of `seconds` of real time with `voices` voices; `seed` makes the session. With
+/// `realtime`, the calling thread (the audio thread) asks for the FIFO scheduler once the
+/// engine's worker is started (so the worker stays at normal priority).
+pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport {
     let mut rng = SplitMix64::new(seed);
     let glass = Material::preset("glass").expect("glass");
     let mut base_voicing = Voicing::from_material(&glass, 0.2).expect("glass voices");
@@ -257,6 +297,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64) -> SoakReport {
     let mut times_us: Vec<f32> = Vec::with_capacity(total_blocks as usize);
     let mut report = SoakReport {
         deadline_us: deadline.as_secs_f64() * 1e6,
+        realtime: realtime && realtime_priority(80),
         ..SoakReport::default()
     };
     let mut voicing = base_voicing;
