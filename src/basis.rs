@@ -144,6 +144,55 @@ fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
     out
 }
 
+/// The point of the unit face square `face` nearest to `p` (voxel units).
+fn point_on_face(face: &Face, p: [f64; 3]) -> [f64; 3] {
+    let v = face.voxel;
+    std::array::from_fn(|a| {
+        if a == face.axis {
+            v[a] as f64 + if face.side > 0 { 1.0 } else { 0.0 }
+        } else {
+            p[a].clamp(v[a] as f64, v[a] as f64 + 1.0)
+        }
+    })
+}
+
+/// The face of `surface` nearest to `p` (voxel units): where a hit lands. The first of equals.
+fn nearest_face(surface: &[Face], p: [f64; 3]) -> Option<Face> {
+    let mut best: Option<(f64, Face)> = None;
+    for &face in surface {
+        let q = point_on_face(&face, p);
+        let d2: f64 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum();
+        if best.is_none_or(|b| d2 < b.0) {
+            best = Some((d2, face));
+        }
+    }
+    best.map(|(_, f)| f)
+}
+
+/// Where a strike aimed at `point` lands, as a solve snaps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StruckPoint {
+    /// The nearest point of the nearest exposed face, voxel units from the grid's corner.
+    pub point_voxels: [f64; 3],
+    /// The face's unit inward normal (the smooth fill's on a curved surface of partial voxels):
+    /// the direction a strike without a force direction pushes.
+    pub inward_normal: [f64; 3],
+}
+
+/// Where a strike aimed at `point_voxels` (voxel units from the grid's corner) lands on `grid`
+/// (what [`ModeBasis`] strikes: the editor draws its hit marker here). `None` for a grid with
+/// no surface or a point that is not finite.
+pub fn struck_point(grid: &VoxelGrid, point_voxels: [f64; 3]) -> Option<StruckPoint> {
+    if point_voxels.iter().any(|c| !c.is_finite()) {
+        return None;
+    }
+    let face = nearest_face(&exposed_faces(grid), point_voxels)?;
+    Some(StruckPoint {
+        point_voxels: point_on_face(&face, point_voxels),
+        inward_normal: face.normal,
+    })
+}
+
 /// Why a shape could not be solved.
 #[derive(Debug, thiserror::Error)]
 pub enum BasisError {
@@ -458,35 +507,12 @@ impl ModeBasis {
             return Err(HitError::Point(hit.point_m));
         }
         let p = hit.point_m.map(|c| c / voxel_size_m);
-        let mut best: Option<(f64, Face)> = None;
-        for &face in &self.surface {
-            let Face {
-                voxel: v,
-                axis,
-                side,
-                ..
-            } = face;
-            // Distance from p to the unit face square.
-            let plane = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
-            let mut d2 = (p[axis] - plane).powi(2);
-            for a in (0..3).filter(|&a| a != axis) {
-                let lo = v[a] as f64;
-                let c = p[a].clamp(lo, lo + 1.0);
-                d2 += (p[a] - c).powi(2);
-            }
-            if best.is_none_or(|b| d2 < b.0) {
-                best = Some((d2, face));
-            }
-        }
-        let (
-            _,
-            Face {
-                voxel: v,
-                axis,
-                side,
-                normal,
-            },
-        ) = best.ok_or(HitError::NoSurface)?;
+        let Face {
+            voxel: v,
+            axis,
+            side,
+            normal,
+        } = nearest_face(&self.surface, p).ok_or(HitError::NoSurface)?;
         let order = self.model.kind.order();
         let others = [(axis + 1) % 3, (axis + 2) % 3];
         let local = |a: usize| (p[a] - v[a] as f64).clamp(0.0, 1.0);
@@ -546,6 +572,27 @@ mod tests {
         let mut g = VoxelGrid::from_fn([3, 3, 3], 1.0, |_, _, _| true).unwrap();
         g.set(1, 1, 1, false);
         assert_eq!(exposed_faces(&g).len(), 60);
+    }
+
+    /// Truth: the geometry of a box and of a tube, by hand. A point above a box lands straight
+    /// below on its top, pushing down; a point in a tube's empty inside lands on the nearest
+    /// inner wall (half a voxel away), pushing into the wall, never in the air.
+    #[test]
+    fn a_strike_lands_on_the_nearest_face_of_the_surface() {
+        let block = VoxelGrid::from_fn([4, 2, 3], 1.0, |_, _, _| true).unwrap();
+        let s = struck_point(&block, [1.3, 0.7, 5.0]).unwrap();
+        assert_eq!(s.point_voxels, [1.3, 0.7, 3.0]);
+        assert_eq!(s.inward_normal, [0.0, 0.0, -1.0]);
+        let mut tube = VoxelGrid::from_fn([3, 3, 4], 1.0, |_, _, _| true).unwrap();
+        for z in 0..4 {
+            tube.set(1, 1, z, false);
+        }
+        let aim = [1.5, 1.5, 2.5];
+        let s = struck_point(&tube, aim).unwrap();
+        let d: Vec<f64> = (0..3).map(|a| s.point_voxels[a] - aim[a]).collect();
+        assert!(((d.iter().map(|x| x * x).sum::<f64>()).sqrt() - 0.5).abs() < 1e-12);
+        assert!((0..3).map(|a| d[a] * s.inward_normal[a]).sum::<f64>() > 0.49);
+        assert!(struck_point(&tube, [f64::NAN, 0.0, 0.0]).is_none());
     }
 
     #[test]

@@ -109,6 +109,22 @@ pub struct EditorApp {
     /// Voxels along the longest side of an imported mesh, or of a `.vox` too large for the
     /// working box.
     import_side: usize,
+    /// The hit marker, for the object hash, hit parameters and force direction it was found for.
+    hit_marker: Option<(HitMarkerKey, Option<HitMarker>)>,
+}
+
+/// What the hit marker depends on: the object's hash, the Hit X/Y/Z values and the force
+/// direction (`None`: into the face).
+type HitMarkerKey = (u64, [u32; 3], Option<[u64; 3]>);
+
+/// Where a strike lands, for the view: on the object's surface, as the solver snaps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HitMarker {
+    /// The struck point, world (box voxel) units.
+    pub point: view3d::V3,
+    /// The force's unit direction: the struck face's inward normal, or the Force Azimuth and
+    /// Elevation when "Force Normal to Surface" is off.
+    pub direction: view3d::V3,
 }
 
 /// A hit point the editor picked (the caller sets it as the Hit X/Y/Z parameters).
@@ -156,6 +172,7 @@ impl EditorApp {
             matching: None,
             current_preset: None,
             import_side: crate::sculpt::MAX_SIDE,
+            hit_marker: None,
         }
     }
 
@@ -238,8 +255,9 @@ impl EditorApp {
         })
     }
 
-    /// Where the current hit parameters put the hit, world units.
-    pub fn hit_point(&self) -> Option<view3d::V3> {
+    /// Where the current hit parameters aim, world units: Hit X/Y/Z of the object's bounding
+    /// box (inside it, not necessarily on the object).
+    pub fn hit_aim(&self) -> Option<view3d::V3> {
         let (lo, dims) = self.sculptor.bounds()?;
         let f = [
             self.params.strike.hit_x.value(),
@@ -247,6 +265,34 @@ impl EditorApp {
             self.params.strike.hit_z.value(),
         ];
         Some([0, 1, 2].map(|a| lo[a] as f32 + f[a] * dims[a] as f32))
+    }
+
+    /// Where a strike lands and which way it pushes (see [`HitMarker`]); cached until the
+    /// object or the strike parameters change.
+    pub fn hit_marker(&mut self) -> Option<HitMarker> {
+        let s = &self.params.strike;
+        let direction = s.force_direction();
+        let key: HitMarkerKey = (
+            self.sculptor.shape_hash(),
+            [s.hit_x.value(), s.hit_y.value(), s.hit_z.value()].map(f32::to_bits),
+            direction.map(|d| d.map(f64::to_bits)),
+        );
+        if let Some((k, marker)) = &self.hit_marker {
+            if *k == key {
+                return *marker;
+            }
+        }
+        let marker = self.hit_aim().and_then(|aim| {
+            let struck = self.sculptor.struck_point(aim.map(f64::from))?;
+            let d = direction.unwrap_or(struck.inward_normal);
+            let norm = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            (norm > 0.0).then(|| HitMarker {
+                point: struck.point_voxels.map(|x| x as f32),
+                direction: d.map(|x| (x / norm) as f32),
+            })
+        });
+        self.hit_marker = Some((key, marker));
+        marker
     }
 
     /// Undo; publishes the result.

@@ -280,6 +280,19 @@ impl StrikeGroup {
     pub fn hit(&self) -> [&FloatParam; 3] {
         [&self.hit_x, &self.hit_y, &self.hit_z]
     }
+
+    /// The force direction the knobs describe: `None` (into the struck face) with "Force
+    /// Normal to Surface" on, else the unit vector of Force Azimuth and Elevation.
+    pub fn force_direction(&self) -> Option<[f64; 3]> {
+        if self.force_normal.value() {
+            return None;
+        }
+        let (az, el) = (
+            (self.force_azimuth.value() as f64).to_radians(),
+            (self.force_elevation.value() as f64).to_radians(),
+        );
+        Some([el.cos() * az.cos(), el.cos() * az.sin(), el.sin()])
+    }
 }
 
 /// The "Play" group.
@@ -471,15 +484,7 @@ impl ModalForgeParams {
             },
         };
         let damping = scale_damping(damping, damping_scale);
-        let direction = if self.strike.force_normal.value() {
-            None
-        } else {
-            let (az, el) = (
-                (self.strike.force_azimuth.value() as f64).to_radians(),
-                (self.strike.force_elevation.value() as f64).to_radians(),
-            );
-            Some([el.cos() * az.cos(), el.cos() * az.sin(), el.sin()])
-        };
+        let direction = self.strike.force_direction();
         Voicing {
             youngs_modulus_pa: e,
             density_kg_m3: rho,

@@ -276,11 +276,25 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
         mesh.add_triangle(i0, i0 + 2, i0 + 3);
     }
     painter.add(egui::Shape::mesh(mesh));
-    if let Some(h) = app.hit_point() {
-        let (p, _) = app.camera.project(h);
-        let at = Pos2::new(centre.x + p[0], centre.y + p[1]);
-        painter.circle_stroke(at, 7.0, Stroke::new(2.0, Color32::from_rgb(255, 60, 60)));
-        painter.circle_filled(at, 2.5, Color32::from_rgb(255, 60, 60));
+    // The hit marker where the strike lands on the surface, with the force coming in along
+    // its direction; faint where the object covers it.
+    if let Some(h) = app.hit_marker() {
+        let screen = |v: view3d::V3| {
+            let (p, _) = app.camera.project(v);
+            Pos2::new(centre.x + p[0], centre.y + p[1])
+        };
+        let at = screen(h.point);
+        let tail = screen([0, 1, 2].map(|a| h.point[a] - 3.0 * h.direction[a]));
+        if view3d::unoccluded(&app.sculptor, &app.camera, h.point) {
+            let red = Color32::from_rgb(255, 60, 60);
+            painter.line_segment([tail, at], Stroke::new(2.0, red));
+            painter.circle_stroke(at, 7.0, Stroke::new(2.0, red));
+            painter.circle_filled(at, 2.5, red);
+        } else {
+            let faint = Color32::from_rgba_unmultiplied(255, 60, 60, 90);
+            painter.line_segment([tail, at], Stroke::new(1.0, faint));
+            painter.circle_stroke(at, 7.0, Stroke::new(1.0, faint));
+        }
     }
     let dims = app.sculptor.bounds().map(|(_, d)| d).unwrap_or([0; 3]);
     painter.text(

@@ -64,6 +64,18 @@ impl Sculptor {
             .fill_at(c[0] as isize, c[1] as isize, c[2] as isize)
     }
 
+    /// A hash of the object (occupancy and partial fills): a cache key for what is derived
+    /// from it.
+    pub fn shape_hash(&self) -> u64 {
+        self.cells.shape_hash()
+    }
+
+    /// Where a strike aimed at `aim` (box voxel units) lands: the nearest point of the
+    /// object's surface and that face's inward normal, as the solver snaps it.
+    pub fn struck_point(&self, aim: [f64; 3]) -> Option<modalforge::basis::StruckPoint> {
+        modalforge::basis::struck_point(&self.cells, aim)
+    }
+
     /// Solid (full or partial) voxels.
     pub fn count(&self) -> usize {
         self.cells.count()

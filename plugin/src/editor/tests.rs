@@ -253,9 +253,59 @@ fn the_editor_sculpts_publishes_undoes_and_sets_hits() {
     // A click that misses sets nothing and strikes nothing.
     assert_eq!(app.click([300.0, 0.0]), None);
     assert_eq!(app.link.audition.load(Ordering::Relaxed), 1);
-    // The default hit parameters (0.37, 0.41, 1.0) draw on the block's top.
-    let h = app.hit_point().unwrap();
+    // The default hit parameters (0.37, 0.41, 1.0) draw on the block's top, pushing down.
+    let h = app.hit_aim().unwrap();
     assert!((h[2] - 18.0).abs() < 1e-4 && (h[0] - (14.0 + 0.37 * 4.0)).abs() < 1e-4);
+}
+
+#[test]
+fn the_hit_marker_sits_where_the_strike_lands_and_hides_behind_the_object() {
+    // Truth: the geometry by hand. A 10-voxel glass bowl (2-voxel wall) sits in the box with its
+    // rim on top; Hit (0.5, 0.5, 0.9) aims near the rim height over the empty middle, which is
+    // no surface: the marker lands on the nearest face (the inner wall or the floor, never in
+    // the air), within a voxel of the object's filled cells, and pushes into it. Seen from
+    // above (the default camera looks down) a point on the block's bottom is covered, its
+    // top is not.
+    let host = TestHost::default();
+    let setter = ParamSetter { raw_context: &host };
+    let mut app = app_with(Sculpt::from_spec("bowl:d=10,wall=2").unwrap());
+    for (param, v) in app.params.strike.hit().into_iter().zip([0.5, 0.5, 0.9]) {
+        setter.set_parameter(param, v);
+    }
+    let aim = app.hit_aim().unwrap();
+    let m = app.hit_marker().unwrap();
+    let cell = m.point.map(|v| v.floor() as i64);
+    let near_solid = (-1..=1).any(|dx| {
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dz| app.sculptor.get([cell[0] + dx, cell[1] + dy, cell[2] + dz]))
+        })
+    });
+    assert!(near_solid, "the marker {m:?} floats away from the bowl");
+    assert!(
+        !app.sculptor.get(aim.map(|v| v.floor() as i64)),
+        "the aim is in the air"
+    );
+    let into: f32 = (0..3).map(|a| m.direction[a] * (m.point[a] - aim[a])).sum();
+    assert!(into >= 0.0, "{m:?} pushes out of the bowl");
+    // The block: top seen, bottom covered, from the default camera.
+    let mut app = app_with(block([4, 4, 4]));
+    let cam = Camera {
+        target: [16.0; 3],
+        ..Camera::default()
+    };
+    let top = app.hit_marker().unwrap();
+    assert_eq!(top.direction, [0.0, 0.0, -1.0]);
+    assert!(view3d::unoccluded(&app.sculptor, &cam, top.point));
+    setter.set_parameter(&app.params.strike.hit_z, 0.0);
+    let bottom = app.hit_marker().unwrap();
+    assert!((bottom.point[2] - 14.0).abs() < 1e-6, "{bottom:?}");
+    assert_eq!(bottom.direction, [0.0, 0.0, 1.0]);
+    assert!(!view3d::unoccluded(&app.sculptor, &cam, bottom.point));
+    // "Force Normal to Surface" off: the marker's direction is the azimuth and elevation's.
+    setter.set_parameter(&app.params.strike.force_normal, false);
+    setter.set_parameter(&app.params.strike.force_elevation, -90.0);
+    let d = app.hit_marker().unwrap().direction;
+    assert!(d[2] < -0.999, "{d:?}");
 }
 
 #[test]

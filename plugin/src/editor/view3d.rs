@@ -229,6 +229,15 @@ pub fn shade(camera: &Camera, k: usize) -> f32 {
     0.35 + 0.65 * dot(n, light).max(0.0)
 }
 
+/// Whether `point`, on the object's surface, is what the view sees along its line of sight (no
+/// other part of the object in front of it). A tolerance of 3/4 voxel in depth: a point on a
+/// partial voxel's face lies up to that far behind the box the view draws for it, and any
+/// covering wall is at least a voxel thick.
+pub fn unoccluded(sculptor: &Sculptor, camera: &Camera, point: V3) -> bool {
+    let (offset, depth) = camera.project(point);
+    pick(sculptor, camera, offset).is_none_or(|p| camera.project(p.point).1 >= depth - 0.75)
+}
+
 /// What a click hit: the solid cell, the face's normal index and the point on the face.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pick {
