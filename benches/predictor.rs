@@ -1,9 +1,11 @@
 //! The neural predictor's cost on one core (issue 12): the network on a shape (resampled to
-//! the box, trunk, features back to the CPU) and one strike's decode (the struck cell found, its head evaluated, the
+//! the box where it is outside the training sizes, trunk, features back to the CPU, the pitch
+//! index's query) and one strike's decode (the struck cell found, its head evaluated, the
 //! modal forces written: what the engine does per hit).
 //!
 //! `cargo bench --bench predictor` (criterion). Shapes: the plugin's default glass bowl
-//! (`bowl:d=16,wall=2`, resampled to 32) and a 32-voxel solid sphere; the shipped weights.
+//! (`bowl:d=16,wall=2`, 16 voxels: as it is), a 12-voxel bowl (resampled to 32) and a 32-voxel
+//! solid sphere; the shipped weights and pitch index.
 
 use criterion::Criterion;
 use modalforge::basis::Hit;
@@ -26,7 +28,7 @@ fn main() {
     let predictor = Predictor::shipped().expect("shipped weights");
     let mut c = Criterion::default().configure_from_args();
     {
-        for spec in ["bowl:d=16,wall=2", "sphere:d=32"] {
+        for spec in ["bowl:d=16,wall=2", "bowl:d=12,wall=2", "sphere:d=32"] {
             let g = grid(spec);
             // burn's flex backend runs on the calling thread's rayon pool: one thread.
             c.bench_function(&format!("predict {spec} (one core)"), |b| {

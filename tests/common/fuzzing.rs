@@ -1,7 +1,8 @@
 //! The mutation fuzzer behind `tests/fuzz.rs` and `plugin/tests/state_fuzz.rs` (included by
 //! path in both): libFuzzer-style mutations of a valid seed input, deterministic from
-//! `FUZZ_SEED`, `FUZZ_ITERATIONS` inputs per format; every input must come back without a
-//! panic or a hang.
+//! `FUZZ_SEED`, `FUZZ_ITERATIONS` inputs per format (or as many as `FUZZ_SECONDS` of wall
+//! time allow: the "10^6 executions or 30 minutes" for the slow formats); every input
+//! must come back without a panic or a hang. Each format prints how many inputs it ran.
 //!
 //! The committed corpus: `tests/data/fuzz/<format>/` (the format's name with `_` for spaces)
 //! holds inputs that once broke a reader (each file's name says how) and seeds worth
@@ -127,6 +128,15 @@ fn iterations() -> usize {
         .unwrap_or(DEFAULT_ITERATIONS)
 }
 
+/// The wall-time budget per format, if `FUZZ_SECONDS` sets one.
+fn time_budget() -> Option<std::time::Duration> {
+    std::env::var("FUZZ_SECONDS")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map(std::time::Duration::from_secs_f64)
+}
+
 /// Runs `target` on mutations of `seed`; panics listing every input that panicked or hung.
 pub fn fuzz(format: &str, seed: &[u8], mut target: impl FnMut(&[u8])) {
     let base: u64 = std::env::var("FUZZ_SEED")
@@ -146,7 +156,13 @@ pub fn fuzz(format: &str, seed: &[u8], mut target: impl FnMut(&[u8])) {
         assert!(result.is_ok(), "{format} corpus file {file} panicked");
     }
     let mut failures = Vec::new();
+    let (started, budget) = (Instant::now(), time_budget());
+    let mut ran = 0;
     for i in 0..iterations() {
+        if budget.is_some_and(|b| started.elapsed() > b) {
+            break;
+        }
+        ran += 1;
         let base_input = match m.below(2 * corpus.len() + 1) {
             k if k < corpus.len() => &corpus[k].1[..],
             _ => seed,
@@ -167,5 +183,10 @@ pub fn fuzz(format: &str, seed: &[u8], mut target: impl FnMut(&[u8])) {
             break;
         }
     }
+    eprintln!(
+        "{format}: {ran} mutated inputs and {} corpus files in {:.0} s",
+        corpus.len(),
+        started.elapsed().as_secs_f64()
+    );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
