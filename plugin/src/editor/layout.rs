@@ -237,8 +237,11 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
     if response.hovered() {
         let scroll = ui.input(|i| i.smooth_scroll_delta.y);
         if scroll != 0.0 {
-            app.camera.pixels_per_voxel =
-                (app.camera.pixels_per_voxel * (scroll * 0.002).exp()).clamp(1.0, 200.0);
+            // Towards the cursor: what is under it stays under it.
+            let at = response
+                .hover_pos()
+                .map_or([0.0; 2], |p| [p.x - rect.center().x, p.y - rect.center().y]);
+            app.camera.zoom_at(at, (scroll * 0.002).exp());
         }
     }
     let centre = rect.center();

@@ -259,6 +259,30 @@ fn the_editor_sculpts_publishes_undoes_and_sets_hits() {
 }
 
 #[test]
+fn zooming_keeps_the_point_under_the_cursor() {
+    // Truth: the projection itself. A world point under the cursor projects to the same
+    // screen offset after zooming in or out there (to float rounding), and the scale changes
+    // by the factor; zooming at the centre keeps the target.
+    let mut cam = Camera::default();
+    let cursor = [120.0, -45.0];
+    let (o, d) = cam.ray(cursor);
+    let under = [0, 1, 2].map(|a| o[a] + 64.0 * d[a]);
+    for factor in [1.5, 0.5, 3.0] {
+        let before = cam.pixels_per_voxel;
+        cam.zoom_at(cursor, factor);
+        assert!((cam.pixels_per_voxel / before - factor).abs() < 1e-5);
+        let (p, _) = cam.project(under);
+        assert!(
+            (p[0] - cursor[0]).abs() < 1e-2 && (p[1] - cursor[1]).abs() < 1e-2,
+            "{p:?}"
+        );
+    }
+    let target = cam.target;
+    cam.zoom_at([0.0, 0.0], 2.0);
+    assert_eq!(cam.target, target);
+}
+
+#[test]
 fn the_hit_marker_sits_where_the_strike_lands_and_hides_behind_the_object() {
     // Truth: the geometry by hand. A 10-voxel glass bowl (2-voxel wall) sits in the box with its
     // rim on top; Hit (0.5, 0.5, 0.9) aims near the rim height over the empty middle, which is

@@ -94,6 +94,17 @@ impl Camera {
         (o, f)
     }
 
+    /// Zooms by `factor` towards a screen offset (pixels from the centre, y down): the point
+    /// under the cursor stays under it (the scale is kept within 1-200 pixels per voxel).
+    pub fn zoom_at(&mut self, offset: [f32; 2], factor: f32) {
+        let before = self.pixels_per_voxel;
+        self.pixels_per_voxel = (before * factor).clamp(1.0, 200.0);
+        // The view-plane point under the cursor is target + (x r - y u) / scale: keep it.
+        let k = 1.0 / before - 1.0 / self.pixels_per_voxel;
+        let (r, u, _) = self.basis();
+        self.target = [0, 1, 2].map(|a| self.target[a] + k * (offset[0] * r[a] - offset[1] * u[a]));
+    }
+
     /// Rotates by a mouse drag (pixels), keeping the elevation within +-89 degrees.
     pub fn orbit(&mut self, drag: [f32; 2]) {
         self.yaw -= drag[0] * 0.01;
