@@ -4,7 +4,7 @@
 
 use super::{view3d, EditorApp, Tool, PRIMITIVES};
 use crate::materials::MaterialChoice;
-use egui::{Color32, Pos2, Sense, Stroke, Vec2};
+use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
 use nice_plug::prelude::*;
 use nice_plug_egui::widgets::ParamSlider;
 use std::sync::atomic::Ordering;
@@ -221,10 +221,24 @@ pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
     });
 }
 
+/// Height of the 3D view's caption strip, pixels.
+const CAPTION_PX: f32 = 18.0;
+
+/// The 3D view's area split into the picture and, below it, the caption's own strip, so the
+/// caption is never drawn over the object.
+pub(super) fn view_and_caption(area: Rect) -> (Rect, Rect) {
+    let split = (area.max.y - CAPTION_PX).max(area.min.y);
+    (
+        Rect::from_min_max(area.min, Pos2::new(area.max.x, split)),
+        Rect::from_min_max(Pos2::new(area.min.x, split), area.max),
+    )
+}
+
 pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
     let size = ui.available_size();
-    let (response, painter) = ui.allocate_painter(size, Sense::click_and_drag());
-    let rect = response.rect;
+    let (response, full_painter) = ui.allocate_painter(size, Sense::click_and_drag());
+    let (rect, caption) = view_and_caption(response.rect);
+    let painter = full_painter.with_clip_rect(rect);
     if !app.framed {
         app.camera
             .frame(&app.sculptor, [rect.width(), rect.height()]);
@@ -246,7 +260,10 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
     }
     let centre = rect.center();
     if response.clicked() {
-        if let Some(p) = response.interact_pointer_pos() {
+        if let Some(p) = response
+            .interact_pointer_pos()
+            .filter(|p| rect.contains(*p))
+        {
             if let Some(hit) = app.click([p.x - centre.x, p.y - centre.y]) {
                 let params = app.params.clone();
                 for (param, v) in params.strike.hit().into_iter().zip(hit.fractions) {
@@ -300,11 +317,12 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
         }
     }
     let dims = app.sculptor.bounds().map(|(_, d)| d).unwrap_or([0; 3]);
-    painter.text(
-        rect.left_bottom() + Vec2::new(6.0, -6.0),
-        egui::Align2::LEFT_BOTTOM,
+    full_painter.rect_filled(caption, 0.0, Color32::from_gray(22));
+    full_painter.text(
+        caption.left_center() + Vec2::new(6.0, 0.0),
+        egui::Align2::LEFT_CENTER,
         format!(
-            "{} x {} x {} voxels ({} solid) · drag: rotate · wheel: zoom · click: {}",
+            "{} x {} x {} voxels ({} solid) · drag: rotate · wheel: zoom to the cursor · click: {}",
             dims[0],
             dims[1],
             dims[2],

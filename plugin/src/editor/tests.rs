@@ -259,6 +259,22 @@ fn the_editor_sculpts_publishes_undoes_and_sets_hits() {
 }
 
 #[test]
+fn the_caption_has_its_own_strip_below_the_picture() {
+    // The caption is never drawn over the object: its strip and the picture do not overlap,
+    // and together they fill the view's area; an area shorter than the strip gives the strip
+    // all of it.
+    use egui::{Pos2, Rect};
+    let area = Rect::from_min_max(Pos2::new(10.0, 20.0), Pos2::new(410.0, 320.0));
+    let (picture, caption) = super::layout::view_and_caption(area);
+    assert_eq!(picture.max.y, caption.min.y);
+    assert_eq!((picture.min, caption.max), (area.min, area.max));
+    assert!(caption.height() > 10.0 && picture.height() > 250.0);
+    let tiny = Rect::from_min_max(Pos2::new(0.0, 0.0), Pos2::new(50.0, 5.0));
+    let (picture, caption) = super::layout::view_and_caption(tiny);
+    assert_eq!((picture.height(), caption), (0.0, tiny));
+}
+
+#[test]
 fn zooming_keeps_the_point_under_the_cursor() {
     // Truth: the projection itself. A world point under the cursor projects to the same
     // screen offset after zooming in or out there (to float rounding), and the scale changes
