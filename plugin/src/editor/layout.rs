@@ -218,6 +218,38 @@ pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
             let n = app.resample_side;
             app.edit(|s| s.resample(n));
         }
+        ui.separator();
+        section_controls(app, ui);
+    });
+}
+
+/// The view's section plane: off, or a cut across x, y or z at a chosen height, so that a
+/// hollowed or closed object's inside shows (the view only: the object is unchanged).
+fn section_controls(app: &mut EditorApp, ui: &mut egui::Ui) {
+    const NAMES: [&str; 4] = ["Cut X", "Cut Y", "Cut Z", "No cut"];
+    let mut axis = app.camera.section.map_or(3, |s| s.axis);
+    egui::ComboBox::from_id_salt("section")
+        .selected_text(NAMES[axis])
+        .show_ui(ui, |ui| {
+            for (i, name) in NAMES.iter().enumerate() {
+                ui.selectable_value(&mut axis, i, *name);
+            }
+        })
+        .response
+        .on_hover_text("cut the view open to see inside (the object is not changed)");
+    app.camera.section = (axis < 3).then(|| {
+        let centre = app
+            .sculptor
+            .bounds()
+            .map_or(16.0, |(lo, d)| lo[axis] as f32 + d[axis] as f32 / 2.0);
+        let mut at = app
+            .camera
+            .section
+            .filter(|s| s.axis == axis)
+            .map_or(centre, |s| s.at);
+        let side = super::sculptor::BOX_SIDE as f32;
+        ui.add(egui::Slider::new(&mut at, 0.0..=side).suffix(" vox"));
+        view3d::Section { axis, at }
     });
 }
 

@@ -60,6 +60,7 @@ fn front_camera() -> Camera {
         pitch: 0.0,
         pixels_per_voxel: 10.0,
         target: [BOX_SIDE as f32 / 2.0; 3],
+        section: None,
     }
 }
 
@@ -256,6 +257,34 @@ fn the_editor_sculpts_publishes_undoes_and_sets_hits() {
     // The default hit parameters (0.37, 0.41, 1.0) draw on the block's top, pushing down.
     let h = app.hit_aim().unwrap();
     assert!((h[2] - 18.0).abs() < 1e-4 && (h[0] - (14.0 + 0.37 * 4.0)).abs() < 1e-4);
+}
+
+#[test]
+fn a_section_shows_the_inside_of_a_hollow_object() {
+    // Truth: the geometry by hand. An 8^3 block hollowed with a 1-voxel wall spans cells
+    // 12..20; from straight above, the centre ray meets its top (z = 20). Cut at z = 16 it
+    // meets the cavity's floor instead (the top of the bottom wall, z = 13), and the cut
+    // wall's rim faces show; a cut above the object changes nothing.
+    let mut s = Sculptor::new(&block([8, 8, 8])).unwrap();
+    s.hollow(1).unwrap();
+    let mut cam = Camera {
+        pitch: 1.5691,
+        ..front_camera()
+    };
+    let top = view3d::pick(&s, &cam, [0.0, 0.0]).unwrap();
+    assert_eq!((top.cell[2], NORMALS[top.normal]), (19, [0, 0, 1]));
+    let whole = view3d::visible_faces(&s, &cam).len();
+    cam.section = Some(view3d::Section { axis: 2, at: 16.0 });
+    let floor = view3d::pick(&s, &cam, [0.0, 0.0]).unwrap();
+    assert_eq!((floor.cell[2], NORMALS[floor.normal]), (12, [0, 0, 1]));
+    assert!((floor.point[2] - 13.0).abs() < 1e-3);
+    let cut = view3d::visible_faces(&s, &cam);
+    assert!(cut
+        .iter()
+        .any(|f| f.cell[2] == 15 && NORMALS[f.normal] == [0, 0, 1]));
+    assert_ne!(cut.len(), whole);
+    cam.section = Some(view3d::Section { axis: 2, at: 25.0 });
+    assert_eq!(view3d::visible_faces(&s, &cam).len(), whole);
 }
 
 #[test]

@@ -44,6 +44,28 @@ pub struct Camera {
     pub pixels_per_voxel: f32,
     /// The point at the view's centre.
     pub target: V3,
+    /// A section plane cutting part of the object away, so that its inside shows.
+    pub section: Option<Section>,
+}
+
+/// A section plane: the view shows (and picks) only the cells whose centre lies below `at`
+/// along `axis`; the part above is cut away.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Section {
+    /// 0, 1, 2: x, y, z.
+    pub axis: usize,
+    /// Where the plane cuts, world units (voxels).
+    pub at: f32,
+}
+
+impl Camera {
+    /// What cell `c` holds as the view shows it: empty where the section cuts it away.
+    pub fn shown(&self, sculptor: &Sculptor, c: [i64; 3]) -> VoxelFill {
+        match self.section {
+            Some(s) if c[s.axis] as f32 + 0.5 > s.at => VoxelFill::Empty,
+            _ => sculptor.fill(c),
+        }
+    }
 }
 
 impl Default for Camera {
@@ -53,6 +75,7 @@ impl Default for Camera {
             pitch: 0.55,
             pixels_per_voxel: 10.0,
             target: [16.0; 3],
+            section: None,
         }
     }
 }
@@ -137,7 +160,8 @@ pub struct Face {
     pub depth: f32,
 }
 
-/// The exposed faces turned towards the camera, farthest first. A partial voxel is drawn as
+/// The exposed faces turned towards the camera, farthest first (of the cells the section
+/// keeps, [`Camera::shown`]: a cut shows the inside). A partial voxel is drawn as
 /// a smaller box of its filled volume, placed at its fill's centroid ([`cell_box`]); a full
 /// voxel's face towards a partial neighbour stays visible.
 pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
@@ -148,7 +172,7 @@ pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
         for y in 0..n {
             for x in 0..n {
                 let c = [x, y, z];
-                let fill = sculptor.fill(c);
+                let fill = camera.shown(sculptor, c);
                 if fill == VoxelFill::Empty {
                     continue;
                 }
@@ -157,7 +181,7 @@ pub fn visible_faces(sculptor: &Sculptor, camera: &Camera) -> Vec<Face> {
                 let cell_depth = camera.project(centre).1;
                 for (k, d) in NORMALS.iter().enumerate() {
                     let nf = d.map(|v| v as f32);
-                    let neighbour = sculptor.fill([x + d[0], y + d[1], z + d[2]]);
+                    let neighbour = camera.shown(sculptor, [x + d[0], y + d[1], z + d[2]]);
                     let hidden = neighbour == VoxelFill::Full && fill == VoxelFill::Full;
                     if dot(nf, f) >= 0.0 || hidden {
                         continue;
@@ -323,7 +347,7 @@ pub fn pick(sculptor: &Sculptor, camera: &Camera, offset: [f32; 2]) -> Option<Pi
         .unwrap_or(0);
     let mut t_enter = t0;
     loop {
-        match sculptor.fill(cell) {
+        match camera.shown(sculptor, cell) {
             VoxelFill::Empty => {}
             VoxelFill::Full => {
                 let normal = 2 * entered + usize::from(step[entered] < 0);
