@@ -667,9 +667,10 @@ impl NiceEguiApp for EditorWindow {
         // Keep the status line's timer and counters live while they change.
         ui.ctx().request_repaint_after(app.redraw_after());
 
+        let sizes = layout::PanelSizes::for_window(ui.available_size().into());
         egui::Panel::top("files").show(ui, |ui| layout::top_bar(app, ui, &setter));
         egui::Panel::bottom("spectrum")
-            .exact_size(170.0)
+            .exact_size(sizes.spectrum_px)
             .show(ui, |ui| {
                 let (status, error) = app.status_line();
                 ui.colored_label(
@@ -680,10 +681,10 @@ impl NiceEguiApp for EditorWindow {
                     },
                     status,
                 );
-                spectrum_view::show(ui, &app.lines, 140.0);
+                spectrum_view::show(ui, &app.lines, sizes.spectrum_px - 30.0);
             });
         egui::Panel::right("controls")
-            .exact_size(300.0)
+            .exact_size(sizes.controls_px)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| layout::controls(app, ui, &setter));
             });

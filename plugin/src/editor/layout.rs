@@ -168,8 +168,34 @@ fn undo_shortcuts(ui: &mut egui::Ui) -> (bool, bool) {
     })
 }
 
+/// The window's panel sizes for its size in pixels: the right panel (the parameters, which
+/// scroll) and the bottom one (status line and spectrum) shrink with a small window, so that
+/// the 3D view keeps at least half the width and a third of the height down to the stated
+/// minimum window of [`MIN_WINDOW_PX`]; at the default size they are 300 and 170 px.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct PanelSizes {
+    /// The right panel's width.
+    pub controls_px: f32,
+    /// The bottom panel's height (the spectrum gets it less the status line).
+    pub spectrum_px: f32,
+}
+
+/// The smallest window the layout is made for (every control reachable: rows wrap, the
+/// parameters scroll).
+pub const MIN_WINDOW_PX: [f32; 2] = [480.0, 360.0];
+
+impl PanelSizes {
+    /// Sizes for a window of `window` pixels (width, height).
+    pub fn for_window(window: [f32; 2]) -> Self {
+        Self {
+            controls_px: (0.3 * window[0]).clamp(180.0, 300.0),
+            spectrum_px: (0.25 * window[1]).clamp(90.0, 170.0),
+        }
+    }
+}
+
 pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
-    ui.horizontal(|ui| {
+    ui.horizontal_wrapped(|ui| {
         ui.selectable_value(&mut app.tool, Tool::Add, "Add");
         ui.selectable_value(&mut app.tool, Tool::Remove, "Remove");
         ui.selectable_value(&mut app.tool, Tool::Hit, "Hit");

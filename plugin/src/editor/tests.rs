@@ -288,6 +288,22 @@ fn a_section_shows_the_inside_of_a_hollow_object() {
 }
 
 #[test]
+fn panels_leave_the_3d_view_room_down_to_the_minimum_window() {
+    // The default window (the editor's own size) keeps the 300 px parameters panel and the
+    // 170 px spectrum; at the stated minimum the 3D view keeps half the width and, with the
+    // top bar and two sculpt rows (about 110 px), a third of the height.
+    use super::layout::{PanelSizes, MIN_WINDOW_PX};
+    let default = PanelSizes::for_window([WINDOW_SIZE.0 as f32, WINDOW_SIZE.1 as f32]);
+    assert_eq!((default.controls_px, default.spectrum_px), (300.0, 170.0));
+    let [w, h] = MIN_WINDOW_PX;
+    let small = PanelSizes::for_window(MIN_WINDOW_PX);
+    assert!(w - small.controls_px >= 0.5 * w, "{small:?}");
+    assert!(h - small.spectrum_px - 110.0 >= h / 3.0, "{small:?}");
+    // The spectrum strip keeps room for its plot under the status line.
+    assert!(small.spectrum_px - 30.0 >= 60.0);
+}
+
+#[test]
 fn the_caption_has_its_own_strip_below_the_picture() {
     // The caption is never drawn over the object: its strip and the picture do not overlap,
     // and together they fill the view's area; an area shorter than the strip gives the strip
