@@ -185,11 +185,13 @@ pub(super) struct PanelSizes {
 pub const MIN_WINDOW_PX: [f32; 2] = [480.0, 360.0];
 
 impl PanelSizes {
-    /// Sizes for a window of `window` pixels (width, height).
+    /// Sizes for a window of `window` pixels (width, height); a window under the minimum gets
+    /// the minimum's.
     pub fn for_window(window: [f32; 2]) -> Self {
+        let [w, h] = [0, 1].map(|a| window[a].max(MIN_WINDOW_PX[a]));
         Self {
-            controls_px: (0.3 * window[0]).clamp(180.0, 300.0),
-            spectrum_px: (0.25 * window[1]).clamp(90.0, 170.0),
+            controls_px: (0.3 * w).clamp(180.0, 300.0),
+            spectrum_px: (0.25 * h).clamp(90.0, 170.0),
         }
     }
 }
