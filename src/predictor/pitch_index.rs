@@ -206,7 +206,11 @@ impl PitchIndex {
                 }
             }
         }
-        let nearest = &self.positions[nearest.1 * BANDS..(nearest.1 + 1) * BANDS];
+        // An empty index (only `PitchIndex::default()`) has no nearest shape: no band filled.
+        let nearest = self
+            .positions
+            .get(nearest.1 * BANDS..(nearest.1 + 1) * BANDS)
+            .unwrap_or(&[]);
         Retrieval {
             band_log_hz: std::array::from_fn(|b| {
                 let (_, p) = best[b];
@@ -292,6 +296,14 @@ mod tests {
         // The bar's nearest shape is itself, which fills band 3 only.
         let fills = back.query(&bar).nearest_fills;
         assert!(fills.iter().enumerate().all(|(k, &f)| f == (k == 3)));
+    }
+
+    #[test]
+    fn an_empty_index_finds_nothing() {
+        let bar = VoxelGrid::from_fn([8, 2, 2], 1.0, |_, _, _| true).unwrap();
+        let found = PitchIndex::default().query(&bar);
+        assert_eq!(found.band_log_hz, [None; BANDS]);
+        assert_eq!(found.nearest_fills, [false; BANDS]);
     }
 
     #[test]
