@@ -39,7 +39,7 @@ pub use solvers::{
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{
     EngineControl, FemSolver, LatestObject, ModeSolver, ObjectRequest, RequestSource, SolveReport,
-    SolveState, WorkerStatus,
+    SolveState, StatusWatcher, WorkerStatus,
 };
 
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -12,6 +12,7 @@
 //! The window's logic lives in [`EditorApp`] methods that take no egui context
 //! ([`EditorApp::click`], [`EditorApp::undo`], ...) so tests drive it without a window.
 
+pub mod dump;
 mod layout;
 pub mod matching;
 mod recording;
@@ -25,7 +26,6 @@ use crate::materials::{MaterialChoice, MaterialTable};
 use crate::params::ModalForgeParams;
 use crate::presets::Preset;
 use crate::sculpt::Sculpt;
-use egui::Color32;
 use modalforge::engine::spectrum::{spectrum, SpectrumLine};
 use modalforge::engine::{EngineControl, SolveState, Voicing};
 use modalforge::shape::VoxelGrid;
@@ -111,6 +111,15 @@ pub struct EditorApp {
     import_side: usize,
     /// The hit marker, for the object hash, hit parameters and force direction it was found for.
     hit_marker: Option<(HitMarkerKey, Option<HitMarker>)>,
+    /// The state dump for scripted window tests (see [`dump`]); `None` unless asked for.
+    dump: Option<dump::Dump>,
+    /// A `.vox` too large for the box, previewed until kept or cancelled.
+    pending_import: Option<PendingImport>,
+    /// Repaints the window from other threads (the engine's worker, when a solve starts or
+    /// ends); `None` in tests.
+    repaint: Option<nice_plug_egui::RepaintNotifier>,
+    /// The engine control whose status repaints the window (its address), once watched.
+    watched: Option<usize>,
 }
 
 /// What the hit marker depends on: the object's hash, the Hit X/Y/Z values and the force
@@ -173,7 +182,70 @@ impl EditorApp {
             current_preset: None,
             import_side: crate::sculpt::MAX_SIDE,
             hit_marker: None,
+            dump: dump::Dump::from_env(),
+            pending_import: None,
+            repaint: None,
+            watched: None,
         }
+    }
+
+    /// Notes where a control a script may click was drawn (for the state dump).
+    fn mark(&mut self, name: &'static str, rect: egui::Rect) {
+        if let Some(d) = &mut self.dump {
+            d.mark(name, rect);
+        }
+    }
+
+    /// The state a scripted window test checks, as `(key, value)` pairs (see [`dump`]):
+    /// the object, the tool, the hit parameters, the message line, the solver and the
+    /// window's size in logical pixels.
+    pub fn dump_state(&self, window_px: [f32; 2]) -> Vec<(&'static str, String)> {
+        let (lo, dims) = self.sculptor.bounds().unwrap_or(([0; 3], [0; 3]));
+        let s = &self.params.strike;
+        let (message, error) = self
+            .message
+            .as_ref()
+            .map_or(("", false), |(m, e)| (m.as_str(), *e));
+        let status = self.link.control().map(|c| c.status());
+        let mut state = vec![
+            ("box", format!("{},{},{}", dims[0], dims[1], dims[2])),
+            ("box_min", format!("{},{},{}", lo[0], lo[1], lo[2])),
+            ("voxels", self.sculptor.count().to_string()),
+            ("shape_hash", format!("{:016x}", self.sculptor.shape_hash())),
+            ("undo", self.sculptor.undo_depth().to_string()),
+            ("redo", self.sculptor.redo_depth().to_string()),
+            ("tool", format!("{:?}", self.tool).to_lowercase()),
+            (
+                "hit",
+                format!(
+                    "{},{},{}",
+                    s.hit_x.value(),
+                    s.hit_y.value(),
+                    s.hit_z.value()
+                ),
+            ),
+            ("path", self.path.clone()),
+            ("message", message.to_string()),
+            ("message_is_error", error.to_string()),
+            ("preset", self.presets_caption()),
+            (
+                "import_pending",
+                self.pending_import()
+                    .map_or("no".into(), |f| format!("{f:?}").to_lowercase()),
+            ),
+            ("status", self.status_line().0),
+            ("window", format!("{:.0},{:.0}", window_px[0], window_px[1])),
+        ];
+        if let Some(st) = status {
+            let solving = matches!(st.state, SolveState::Solving { .. });
+            state.push(("solves", st.solves.to_string()));
+            state.push(("solving", solving.to_string()));
+            if let Some(p) = &st.playing {
+                state.push(("playing_modes", p.modes.to_string()));
+                state.push(("playing_solver", p.solver.to_string()));
+            }
+        }
+        state
     }
 
     /// Reloads the object if the host replaced it (a state restore, a preset from the host).
@@ -188,6 +260,7 @@ impl EditorApp {
             if let Ok(s) = Sculptor::new(&now) {
                 self.sculptor = s;
                 self.framed = false;
+                self.pending_import = None;
             }
             self.synced = now;
         }
@@ -196,6 +269,8 @@ impl EditorApp {
     /// Writes the sculpted object to the parameters (the worker notices and re-solves); a
     /// recording playing instead of the shape stops.
     fn publish(&mut self) {
+        // Whatever the sculptor holds now is the object: a previewed import is kept.
+        self.pending_import = None;
         match self.sculptor.sculpt() {
             Ok(s) => {
                 let mut recording = self
@@ -348,11 +423,27 @@ impl EditorApp {
         self.lines = spectrum(&latest.basis, &voicing, fs).unwrap_or_default();
     }
 
+    /// Has the running engine's worker repaint the window when its status changes (a solve
+    /// starts, an answer arrives), so an idle window need not poll for solves the host starts.
+    fn watch_engine(&mut self) {
+        let (Some(control), Some(repaint)) = (self.link.control(), &self.repaint) else {
+            return;
+        };
+        let address = Arc::as_ptr(&control) as usize;
+        if self.watched != Some(address) {
+            let repaint = repaint.clone();
+            control.watch_status(Arc::new(move || repaint.request_repaint()));
+            self.watched = Some(address);
+        }
+    }
+
     /// How soon the window should redraw by itself (input redraws it at once anyway): every
     /// [`LIVE_REDRAW`] while something it shows changes on its own (a solve or a match runs,
-    /// notes ring: the status line's timer and counters), else every [`IDLE_REDRAW`], just
-    /// often enough to notice a solve the host started. An idle window redrawing 10 times a
-    /// second cost about a fifth of a core.
+    /// notes ring: the status line's timer and counters), else every [`IDLE_REDRAW`]: solves
+    /// repaint it through the engine's status watcher, parameter changes through nice-plug,
+    /// so the idle redraw only catches a note the host starts. An idle window redrawing 10
+    /// times a second cost about a fifth of a core; every 0.5 s, 5.4 % under Xvfb (most of it
+    /// Mesa's software rasteriser).
     pub fn redraw_after(&self) -> std::time::Duration {
         let live = self.matching.is_some()
             || self.link.control().is_some_and(|c| {
@@ -428,60 +519,149 @@ impl EditorApp {
 
     /// Imports the model in the path field: a MagicaVoxel `.vox`, or an OBJ or STL mesh
     /// (voxelised with `import_side` voxels along its longest side, partial voxels on its
-    /// surface). A `.vox` larger than the working box is resampled to fit (longest side
-    /// `import_side`). One undo step; the message says what was done.
-    fn import(&mut self) {
+    /// surface). A model that fits the working box replaces the object at once (one undo
+    /// step); a `.vox` larger than the box is previewed, resampled to fit (longest side
+    /// `import_side`), until the user keeps it ([`EditorApp::keep_import`]), crops it instead
+    /// ([`EditorApp::set_import_fit`]) or cancels ([`EditorApp::cancel_import`]). The message
+    /// says what was done.
+    pub fn import(&mut self) {
         let path = Path::new(self.path.trim()).to_path_buf();
+        self.cancel_import();
         match self.read_model(&path) {
-            Ok((grid, said)) => {
+            Ok(Model::Fits(grid, said)) => {
                 self.edit(|s| s.replace(&grid));
                 if self.message.is_none() {
                     self.message = Some((format!("loaded {}: {said}", path.display()), false));
                 }
             }
+            Ok(Model::TooLarge(original)) => {
+                self.pending_import = Some(PendingImport {
+                    original,
+                    path,
+                    fit: ImportFit::Resample,
+                    shown: false,
+                });
+                self.show_import();
+            }
             Err(e) => self.message = Some((e, true)),
         }
     }
 
-    /// The model at `path` as a grid that fits the working box, and what was done to it.
-    fn read_model(&self, path: &Path) -> Result<(VoxelGrid, String), String> {
+    /// The model at `path`: a grid that fits the working box and what was done to it, or a
+    /// `.vox` too large for the box, cropped to its solid voxels.
+    fn read_model(&self, path: &Path) -> Result<Model, String> {
         let ext = path
             .extension()
             .map(|e| e.to_string_lossy().to_lowercase())
             .unwrap_or_default();
         let side = self.import_side.clamp(2, crate::sculpt::MAX_SIDE);
-        let undo = "Ctrl+Z restores the previous object";
         if ext == "obj" || ext == "stl" {
             let name = path.display().to_string();
             let g = modalforge::shape::mesh::read_mesh(path)
                 .and_then(|m| modalforge::shape::mesh::voxelize(&m, side, &name))
                 .map_err(|e| e.to_string())?;
             let [x, y, z] = g.dims();
-            let said = format!("voxelised to {x}x{y}x{z}, {} voxels; {undo}", g.count());
-            return Ok((g, said));
+            let said = format!(
+                "voxelised to {x}x{y}x{z}, {} voxels; {UNDO_HINT}",
+                g.count()
+            );
+            return Ok(Model::Fits(g, said));
         }
         let g = modalforge::shape::vox::read_vox(path, 1.0)
             .map_err(|e| e.to_string())?
             .cropped();
-        let [x, y, z] = g.dims();
-        let read = format!("{x}x{y}x{z}, {} voxels", g.count());
         if g.dims().into_iter().all(|d| d <= crate::sculpt::MAX_SIDE) {
-            return Ok((g, read));
+            let said = describe(&g);
+            return Ok(Model::Fits(g, said));
         }
-        let r = modalforge::shape::ops::resampled(&g, side).ok_or_else(|| {
+        Ok(Model::TooLarge(g))
+    }
+
+    /// Puts the pending import, fitted its chosen way, in the view (not yet solved), in place
+    /// of the previous preview if any.
+    pub(crate) fn show_import(&mut self) {
+        let side = self.import_side.clamp(2, crate::sculpt::MAX_SIDE);
+        let Some(p) = &mut self.pending_import else {
+            return;
+        };
+        if std::mem::take(&mut p.shown) {
+            self.sculptor.retract();
+        }
+        let read = describe(&p.original);
+        let name = p.path.display().to_string();
+        let fitted = fit_model(&p.original, p.fit, side);
+        let shown = fitted
+            .as_ref()
+            .map_err(|e| e.clone())
+            .and_then(|(g, _)| self.sculptor.replace(g).map_err(|e| e.to_string()));
+        self.message = Some(match (shown, fitted) {
+            (Ok(()), Ok((_, said))) => {
+                p.shown = true;
+                self.framed = false;
+                (
+                    format!(
+                        "{name}: {read}, {said} to fit the {max}^3 box (a preview): Keep it,                          try the other fit, or Cancel",
+                        max = crate::sculpt::MAX_SIDE
+                    ),
+                    false,
+                )
+            }
+            (Err(e), _) | (_, Err(e)) => (format!("{name}: {read}; {e}"), true),
+        });
+    }
+
+    /// The import waiting for a choice: its fit, if one is pending.
+    pub fn pending_import(&self) -> Option<ImportFit> {
+        self.pending_import.as_ref().map(|p| p.fit)
+    }
+
+    /// Fits the pending import the other way (resampled or cropped) and shows it.
+    pub fn set_import_fit(&mut self, fit: ImportFit) {
+        if let Some(p) = &mut self.pending_import {
+            if p.fit != fit {
+                p.fit = fit;
+                self.show_import();
+            }
+        }
+    }
+
+    /// Keeps the previewed import: it becomes the object (one undo step) and is solved.
+    pub fn keep_import(&mut self) {
+        let Some(p) = self.pending_import.take() else {
+            return;
+        };
+        if !p.shown {
+            return;
+        }
+        self.publish();
+        if let Some((_, modified)) = &mut self.current_preset {
+            *modified = true;
+        }
+        let [x, y, z] = self.sculptor.bounds().map_or([0; 3], |(_, d)| d);
+        self.message = Some((
             format!(
-                "{}: {read}; resampled to {side} voxels it vanishes (too thin): raise the \
-                 import size",
-                path.display()
-            )
-        })?;
-        let [a, b, c] = r.dims();
-        let said = format!(
-            "{read}, resampled to {a}x{b}x{c} ({} voxels) to fit the {max}^3 box; {undo}",
-            r.count(),
-            max = crate::sculpt::MAX_SIDE
-        );
-        Ok((r, said))
+                "loaded {}: {x}x{y}x{z}, {} voxels ({}); {UNDO_HINT}",
+                p.path.display(),
+                self.sculptor.count(),
+                match p.fit {
+                    ImportFit::Resample => "resampled",
+                    ImportFit::Crop => "cropped",
+                }
+            ),
+            false,
+        ));
+    }
+
+    /// Drops the previewed import; the object before it comes back (nothing to redo).
+    pub fn cancel_import(&mut self) {
+        let Some(p) = self.pending_import.take() else {
+            return;
+        };
+        if p.shown {
+            self.sculptor.retract();
+            self.framed = false;
+        }
+        self.message = Some((format!("import of {} cancelled", p.path.display()), false));
     }
 
     fn save_vox(&mut self) {
@@ -609,6 +789,74 @@ impl EditorApp {
     }
 }
 
+/// What an import's message says about undoing it.
+const UNDO_HINT: &str = "Ctrl+Z restores the previous object";
+
+/// A model read for import.
+enum Model {
+    /// It fits the working box: the grid and what was done to it.
+    Fits(VoxelGrid, String),
+    /// A `.vox` larger than the box, cropped to its solid voxels.
+    TooLarge(VoxelGrid),
+}
+
+/// How an imported model too large for the working box is made to fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImportFit {
+    /// Resampled so that its longest side is the import size (the whole model, coarser).
+    Resample,
+    /// Its central box-sized part at full resolution (detail kept, the rest cut off).
+    Crop,
+}
+
+/// An imported model too large for the box, previewed in the view until kept or cancelled.
+struct PendingImport {
+    /// The model as read, cropped to its solid voxels.
+    original: VoxelGrid,
+    /// Where it came from.
+    path: std::path::PathBuf,
+    /// How it is fitted.
+    fit: ImportFit,
+    /// The sculptor holds the preview as its last undo step.
+    shown: bool,
+}
+
+/// A grid's size and voxel count, as messages say them: "24x24x25, 2370 voxels".
+fn describe(g: &VoxelGrid) -> String {
+    let [x, y, z] = g.dims();
+    format!("{x}x{y}x{z}, {} voxels", g.count())
+}
+
+/// `model` made to fit the working box `fit`'s way (`side`: the resampled longest side), and
+/// what was done ("resampled to 32x32x16 (1234 voxels)").
+fn fit_model(
+    model: &VoxelGrid,
+    fit: ImportFit,
+    side: usize,
+) -> Result<(VoxelGrid, String), String> {
+    let max = crate::sculpt::MAX_SIDE;
+    let (grid, how) = match fit {
+        ImportFit::Resample => (
+            modalforge::shape::ops::resampled(model, side).ok_or_else(|| {
+                format!("resampled to {side} voxels it vanishes (too thin): raise the import size")
+            })?,
+            "resampled",
+        ),
+        ImportFit::Crop => {
+            let d = model.dims();
+            let lo = [0, 1, 2].map(|a| (d[a] - d[a].min(max)) / 2);
+            let g = model.window(lo, [0, 1, 2].map(|a| d[a].min(max))).cropped();
+            if g.count() == 0 {
+                return Err("its central part is empty: resample it instead".into());
+            }
+            (g, "cropped")
+        }
+    };
+    let [a, b, c] = grid.dims();
+    let said = format!("{how} to {a}x{b}x{c} ({} voxels)", grid.count());
+    Ok((grid, said))
+}
+
 /// Where file paths start: `~/ModalForge/object.vox`.
 fn default_dir() -> String {
     let home = std::env::var("HOME").unwrap_or_else(|_| ".".into());
@@ -635,10 +883,12 @@ pub fn create(
     link: Arc<EditorLink>,
     state: Arc<EguiEditorState>,
 ) -> Option<nice_plug_egui::EguiEditor<EditorWindow>> {
-    let app = EditorApp::new(params, table, link);
+    let mut app = EditorApp::new(params, table, link);
+    let repaint = nice_plug_egui::RepaintNotifier::new();
+    app.repaint = Some(repaint.clone());
     nice_plug_egui::create_egui_editor(
         state,
-        nice_plug_egui::RepaintNotifier::new(),
+        repaint,
         nice_plug_egui::EguiNiceSettings::new().with_tile("ModalForge"),
         EditorWindow::new(app),
     )
@@ -662,36 +912,20 @@ impl NiceEguiApp for EditorWindow {
         let setter = gui.param_setter();
         let app = &mut self.app;
         app.follow_host();
+        app.watch_engine();
         app.poll_match(&setter);
         app.refresh_spectrum();
         // Keep the status line's timer and counters live while they change.
         ui.ctx().request_repaint_after(app.redraw_after());
 
-        let sizes = layout::PanelSizes::for_window(ui.available_size().into());
-        egui::Panel::top("files").show(ui, |ui| layout::top_bar(app, ui, &setter));
-        egui::Panel::bottom("spectrum")
-            .exact_size(sizes.spectrum_px)
-            .show(ui, |ui| {
-                let (status, error) = app.status_line();
-                ui.colored_label(
-                    if error {
-                        Color32::from_rgb(240, 110, 90)
-                    } else {
-                        Color32::from_gray(200)
-                    },
-                    status,
-                );
-                spectrum_view::show(ui, &app.lines, sizes.spectrum_px - 30.0);
-            });
-        egui::Panel::right("controls")
-            .exact_size(sizes.controls_px)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| layout::controls(app, ui, &setter));
-            });
-        egui::CentralPanel::default_margins().show(ui, |ui| {
-            layout::sculpt_bar(app, ui);
-            layout::view(app, ui, &setter);
-        });
+        layout::window(app, ui, &setter);
+        if app.dump.is_some() {
+            let size = ui.ctx().content_rect().size();
+            let state = app.dump_state([size.x, size.y]);
+            if let Some(d) = &mut app.dump {
+                d.write(&state);
+            }
+        }
     }
 
     fn editor_closed(&mut self) {
@@ -706,7 +940,7 @@ mod tests;
 const LIVE_REDRAW: std::time::Duration = std::time::Duration::from_millis(100);
 
 /// How often an idle window redraws by itself.
-const IDLE_REDRAW: std::time::Duration = std::time::Duration::from_millis(500);
+const IDLE_REDRAW: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// A relative error as a short percentage ("0.1 %", "10 %").
 fn percent(relative: f64) -> String {

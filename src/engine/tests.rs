@@ -664,3 +664,60 @@ fn a_recording_plays_as_recorded_and_follows_the_pitch_mapping() {
     assert!(control.wait_idle(Duration::from_secs(60)));
     assert_eq!(control.status().playing.map(|p| p.solver), Some("fem"));
 }
+
+/// A status watcher hears every change a window shows: the solve starting, the answer
+/// delivered, the worker idle again (three calls for one solve), each seen with the status
+/// already changed; a replaced watcher is no longer called.
+#[test]
+fn a_status_watcher_hears_each_change_of_a_solve() {
+    use std::sync::atomic::AtomicUsize;
+    let (_audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    let control = Arc::new(control);
+    let calls = Arc::new(AtomicUsize::new(0));
+    let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
+    {
+        let (calls, seen) = (calls.clone(), seen.clone());
+        let weak = Arc::downgrade(&control);
+        control.watch_status(Arc::new(move || {
+            calls.fetch_add(1, Ordering::SeqCst);
+            if let Some(c) = weak.upgrade() {
+                let st = c.status();
+                let solving = matches!(st.state, SolveState::Solving { .. });
+                seen.lock().unwrap().push((solving, st.solves));
+            }
+        }));
+    }
+    // The last call comes just after the worker turns idle, so wait_idle may return first.
+    let settle = |calls: &AtomicUsize, want: usize| {
+        let t0 = std::time::Instant::now();
+        while calls.load(Ordering::SeqCst) < want && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    control.request(request(bar(12), 10));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    settle(&calls, 3);
+    assert_eq!(calls.load(Ordering::SeqCst), 3);
+    assert_eq!(
+        *seen.lock().unwrap(),
+        vec![(true, 0), (true, 1), (false, 1)]
+    );
+    let later = Arc::new(AtomicUsize::new(0));
+    let l = later.clone();
+    control.watch_status(Arc::new(move || {
+        l.fetch_add(1, Ordering::SeqCst);
+    }));
+    control.request(request(bar(14), 10));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    settle(&later, 3);
+    assert_eq!(
+        (calls.load(Ordering::SeqCst), later.load(Ordering::SeqCst)),
+        (3, 3)
+    );
+}

@@ -135,6 +135,9 @@ struct Mailbox {
     busy: bool,
 }
 
+/// Called by the worker whenever its status changes (see [`EngineControl::watch_status`]).
+pub type StatusWatcher = Arc<dyn Fn() + Send + Sync>;
+
 /// Polled by the worker for requests (see [`EngineControl::set_request_source`]).
 pub type RequestSource = Box<dyn FnMut() -> Option<ObjectRequest> + Send>;
 
@@ -144,6 +147,24 @@ struct Shared {
     status: Mutex<WorkerStatus>,
     source: Mutex<Option<RequestSource>>,
     latest: Mutex<Option<LatestObject>>,
+    watcher: Mutex<Option<StatusWatcher>>,
+}
+
+impl Shared {
+    /// Sets the solver's state and tells the watcher.
+    fn set_state(&self, state: SolveState) {
+        lock(&self.status).state = state;
+        self.status_changed();
+    }
+
+    /// Tells the watcher, if any, that the status changed (called with no lock held but the
+    /// watcher's own, so a watcher may read the status).
+    fn status_changed(&self) {
+        let watcher = lock(&self.watcher).clone();
+        if let Some(w) = watcher {
+            w();
+        }
+    }
 }
 
 /// The newest solved object, for views (the editor's spectrum): its generation and modes.
@@ -190,6 +211,7 @@ impl EngineControl {
             }),
             source: Mutex::new(None),
             latest: Mutex::new(None),
+            watcher: Mutex::new(None),
         });
         let worker = Worker {
             shared: shared.clone(),
@@ -222,6 +244,13 @@ impl EngineControl {
     pub fn set_request_source(&self, source: RequestSource) {
         *lock(&self.shared.source) = Some(source);
         self.shared.wake.notify_one();
+    }
+
+    /// Calls `watcher` on the worker thread whenever the status changes (a solve starts or
+    /// ends, an answer is delivered), replacing any earlier watcher. A window uses it to
+    /// repaint when something changes instead of polling on a timer.
+    pub fn watch_status(&self, watcher: StatusWatcher) {
+        *lock(&self.shared.watcher) = Some(watcher);
     }
 
     /// The worker's status.
@@ -347,7 +376,7 @@ impl Worker {
         if let Some(recording) = &request.recording {
             let modes = ObjectModes::Recorded(RecordedObject::clone(recording));
             self.deliver(Ok(modes), "recording", Instant::now(), None);
-            lock(&self.shared.status).state = SolveState::Idle;
+            self.shared.set_state(SolveState::Idle);
             return;
         }
         for i in 0..self.solvers.len() {
@@ -360,15 +389,15 @@ impl Worker {
             }
             let name = self.solvers[i].name();
             let since = Instant::now();
-            lock(&self.shared.status).state = SolveState::Solving {
+            self.shared.set_state(SolveState::Solving {
                 solver: name,
                 since,
-            };
+            });
             let result = self.solvers[i].solve(request);
             let expected_error = self.solvers[i].expected_error();
             self.deliver(result, name, since, expected_error);
         }
-        lock(&self.shared.status).state = SolveState::Idle;
+        self.shared.set_state(SolveState::Idle);
     }
 
     /// Hands a solver's answer (begun at `since`) to the audio side and reports it.
@@ -424,5 +453,7 @@ impl Worker {
         }
         st.last = Some(report);
         st.solves += 1;
+        drop(st);
+        self.shared.status_changed();
     }
 }

@@ -9,6 +9,36 @@ use nice_plug::prelude::*;
 use nice_plug_egui::widgets::ParamSlider;
 use std::sync::atomic::Ordering;
 
+/// The whole window: the file bar on top, status and spectrum at the bottom, the parameters
+/// on the right, the sculpting bar and the 3D view in the middle, sized for the window.
+pub(super) fn window(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
+    let sizes = PanelSizes::for_window(ui.available_size().into());
+    egui::Panel::top("files").show(ui, |ui| top_bar(app, ui, setter, sizes.compact));
+    egui::Panel::bottom("spectrum")
+        .exact_size(sizes.spectrum_px)
+        .show(ui, |ui| {
+            let (status, error) = app.status_line();
+            ui.colored_label(
+                if error {
+                    Color32::from_rgb(240, 110, 90)
+                } else {
+                    Color32::from_gray(200)
+                },
+                status,
+            );
+            super::spectrum_view::show(ui, &app.lines, sizes.spectrum_px - 30.0);
+        });
+    egui::Panel::right("controls")
+        .exact_size(sizes.controls_px)
+        .show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| controls(app, ui, setter, sizes.compact));
+        });
+    egui::CentralPanel::default_margins().show(ui, |ui| {
+        sculpt_bar(app, ui, sizes.compact);
+        view(app, ui, setter);
+    });
+}
+
 /// A combo box for an enum parameter, set through the host.
 fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
     ui: &mut egui::Ui,
@@ -21,6 +51,7 @@ fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
         let current = param.value();
         egui::ComboBox::from_id_salt(label)
             .selected_text(T::variants()[current.to_index()])
+            .width(90.0)
             .show_ui(ui, |ui| {
                 for (i, name) in T::variants().iter().enumerate() {
                     let v = T::from_index(i);
@@ -34,22 +65,40 @@ fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
     });
 }
 
-/// A labelled parameter slider.
+/// Width of a parameter slider's value box beside the bar, pixels (nice-plug-egui's).
+const VALUE_BOX_PX: f32 = 75.0;
+
+/// A labelled parameter slider: label, bar and value on one row, or in a narrow panel the
+/// label above a bar that fits (content wider than a side panel would push the panel's edge
+/// into the 3D view).
 fn slider<P: Param>(ui: &mut egui::Ui, label: &str, param: &P, setter: &ParamSetter) {
-    ui.horizontal(|ui| {
-        ui.add_sized([84.0, 18.0], egui::Label::new(label));
-        ui.add(ParamSlider::for_param(param, setter).with_width(120.0));
-    });
+    const LABEL_PX: f32 = 84.0;
+    const BAR_PX: f32 = 120.0;
+    if ui.available_width() >= LABEL_PX + BAR_PX + VALUE_BOX_PX {
+        ui.horizontal(|ui| {
+            ui.add_sized([LABEL_PX, 18.0], egui::Label::new(label));
+            ui.add(ParamSlider::for_param(param, setter).with_width(BAR_PX));
+        });
+    } else {
+        ui.label(label);
+        let bar = (ui.available_width() - VALUE_BOX_PX).clamp(40.0, BAR_PX);
+        ui.add(ParamSlider::for_param(param, setter).with_width(bar));
+    }
 }
 
-pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
+/// The file bar: presets, the path field, Import and the file actions. In a compact window
+/// the file actions go into a *File* menu so the bar keeps one row.
+pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter, compact: bool) {
     ui.horizontal_wrapped(|ui| {
-        ui.strong("ModalForge");
-        ui.separator();
+        if !compact {
+            ui.strong("ModalForge");
+            ui.separator();
+        }
         let mut chosen = None;
         let current = app.current_preset.as_ref().map(|(name, _)| name.clone());
         egui::ComboBox::from_id_salt("preset")
             .selected_text(app.presets_caption())
+            .width(if compact { 90.0 } else { 120.0 })
             .show_ui(ui, |ui| {
                 for (i, p) in app.presets.iter().enumerate() {
                     if ui
@@ -66,75 +115,48 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
             app.apply_preset(&p, setter);
         }
         ui.separator();
-        ui.label("File");
-        ui.add(egui::TextEdit::singleline(&mut app.path).desired_width(260.0));
-        if ui
-            .button("Import")
+        if compact {
+            let menu = ui.menu_button("File", |ui| file_actions(app, ui, setter));
+            app.mark("file_menu", menu.response.rect);
+        } else {
+            ui.label("File");
+        }
+        let path = ui.add(
+            egui::TextEdit::singleline(&mut app.path).desired_width(if compact {
+                120.0
+            } else {
+                260.0
+            }),
+        );
+        app.mark("path", path.rect);
+        let import = ui.button("Import");
+        app.mark("import", import.rect);
+        if import
             .on_hover_text(
                 "Load the model in the field: a MagicaVoxel .vox, or an OBJ or STL mesh \
-                 (voxelised to the import size); a .vox larger than the 32^3 box is resampled \
-                 to the import size. Ctrl+Z restores the previous object",
+                 (voxelised to the import size); a .vox larger than the 32^3 box is previewed \
+                 resampled to the import size (or cropped) until you keep it. Ctrl+Z \
+                 restores the previous object",
             )
             .clicked()
         {
             app.import();
         }
-        ui.add(
-            egui::DragValue::new(&mut app.import_side)
-                .range(2..=32)
-                .suffix(" vox"),
-        )
-        .on_hover_text("Import size: voxels along the longest side of an imported mesh");
-        if ui.button("Save .vox").clicked() {
-            app.save_vox();
-        }
-        if ui.button("Load preset").clicked() {
-            match app.read_preset() {
-                Ok(p) => app.apply_preset(&p, setter),
-                Err(e) => app.message = Some((e.to_string(), true)),
-            }
-        }
-        if ui.button("Save preset").clicked() {
-            app.save_preset();
-        }
-        if ui
-            .add_enabled(app.matching.is_none(), egui::Button::new("Match recording"))
-            .on_hover_text(
-                "Fit the material and damping of this object to a WAV of the real one struck \
-                 at the hit point (the file in the field; the result is also saved as \
-                 NAME.material.toml beside it)",
+        let import_side = ui
+            .add(
+                egui::DragValue::new(&mut app.import_side)
+                    .range(2..=32)
+                    .suffix(" vox"),
             )
-            .clicked()
-        {
-            app.start_match();
-        }
-        if ui
-            .add_enabled(app.matching.is_none(), egui::Button::new("Play recording"))
             .on_hover_text(
-                "Play the modes of a WAV of a struck object (the file in the field) instead of \
-                 the sculpted shape: in tune on every key, with the mallet, velocity, damping \
-                 and size knobs; the next sculpting edit plays the shape again",
-            )
-            .clicked()
-        {
-            app.start_play();
+                "Import size: voxels along the longest side of an imported mesh, or of a .vox \
+                 resampled to fit the box",
+            );
+        if import_side.changed() && app.pending_import() == Some(super::ImportFit::Resample) {
+            app.show_import();
         }
-        if ui
-            .button("Tuning")
-            .on_hover_text(
-                "Load a Scala tuning for the pitch key mapping: a .scl scale (the file in the \
-                 field), then optionally a .kbm keyboard mapping; saved with the project",
-            )
-            .clicked()
-        {
-            app.load_tuning();
-        }
-        if ui
-            .button("12-TET")
-            .on_hover_text("Back to standard tuning (A4 = 440 Hz)")
-            .clicked()
-        {
-            app.reset_tuning();
+        if !compact {
+            file_actions(app, ui, setter);
         }
     });
     // The message has a line of its own, there whether or not a message is showing, so
@@ -146,6 +168,64 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
     };
     ui.add(egui::Label::new(egui::RichText::new(text).color(colour)).truncate())
         .on_hover_text(text);
+}
+
+/// Save .vox, the presets, the recordings and the tuning: inline in a wide top bar, or in
+/// the *File* menu of a compact one.
+fn file_actions(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
+    if ui.button("Save .vox").clicked() {
+        app.save_vox();
+    }
+    if ui.button("Load preset").clicked() {
+        match app.read_preset() {
+            Ok(p) => app.apply_preset(&p, setter),
+            Err(e) => app.message = Some((e.to_string(), true)),
+        }
+    }
+    let save_preset = ui.button("Save preset");
+    app.mark("save_preset", save_preset.rect);
+    if save_preset.clicked() {
+        app.save_preset();
+    }
+    if ui
+        .add_enabled(app.matching.is_none(), egui::Button::new("Match recording"))
+        .on_hover_text(
+            "Fit the material and damping of this object to a WAV of the real one struck \
+             at the hit point (the file in the field; the result is also saved as \
+             NAME.material.toml beside it)",
+        )
+        .clicked()
+    {
+        app.start_match();
+    }
+    if ui
+        .add_enabled(app.matching.is_none(), egui::Button::new("Play recording"))
+        .on_hover_text(
+            "Play the modes of a WAV of a struck object (the file in the field) instead of \
+             the sculpted shape: in tune on every key, with the mallet, velocity, damping \
+             and size knobs; the next sculpting edit plays the shape again",
+        )
+        .clicked()
+    {
+        app.start_play();
+    }
+    if ui
+        .button("Tuning")
+        .on_hover_text(
+            "Load a Scala tuning for the pitch key mapping: a .scl scale (the file in the \
+             field), then optionally a .kbm keyboard mapping; saved with the project",
+        )
+        .clicked()
+    {
+        app.load_tuning();
+    }
+    if ui
+        .button("12-TET")
+        .on_hover_text("Back to standard tuning (A4 = 440 Hz)")
+        .clicked()
+    {
+        app.reset_tuning();
+    }
 }
 
 /// Ctrl+Z (undo) and Ctrl+Shift+Z (redo) pressed this frame, unless a text field has the
@@ -168,6 +248,25 @@ fn undo_shortcuts(ui: &mut egui::Ui) -> (bool, bool) {
     })
 }
 
+/// The tool a key pressed this frame picks (A: add, R: remove, H: hit), unless a text field
+/// has the keyboard; like the undo shortcut, read from the key events themselves.
+fn tool_key(ui: &mut egui::Ui) -> Option<Tool> {
+    if ui.ctx().egui_wants_keyboard_input() {
+        return None;
+    }
+    use egui::{Key, Modifiers};
+    ui.input_mut(|i| {
+        [
+            (Key::A, Tool::Add),
+            (Key::R, Tool::Remove),
+            (Key::H, Tool::Hit),
+        ]
+        .into_iter()
+        .find(|(key, _)| i.consume_key(Modifiers::NONE, *key))
+        .map(|(_, tool)| tool)
+    })
+}
+
 /// The window's panel sizes for its size in pixels: the right panel (the parameters, which
 /// scroll) and the bottom one (status line and spectrum) shrink with a small window, so that
 /// the 3D view keeps at least half the width and a third of the height down to the stated
@@ -178,7 +277,13 @@ pub(super) struct PanelSizes {
     pub controls_px: f32,
     /// The bottom panel's height (the spectrum gets it less the status line).
     pub spectrum_px: f32,
+    /// A narrow window: the file actions go into a menu and the brush, mirror and shape
+    /// operations into the parameters panel, so the bars keep one row each.
+    pub compact: bool,
 }
+
+/// Windows narrower than this, pixels, get the compact layout.
+pub const COMPACT_BELOW_PX: f32 = 760.0;
 
 /// The smallest window the layout is made for (every control reachable: rows wrap, the
 /// parameters scroll).
@@ -192,26 +297,37 @@ impl PanelSizes {
         Self {
             controls_px: (0.3 * w).clamp(180.0, 300.0),
             spectrum_px: (0.25 * h).clamp(90.0, 170.0),
+            compact: window[0] < COMPACT_BELOW_PX,
         }
     }
 }
 
-pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
+/// The sculpting bar: the tools and undo/redo, then (in a wide window) the brush, mirror
+/// and the shape operations; a compact window moves those to the top of the parameters panel
+/// ([`sculpt_controls`]), which scrolls. Rows wrap between groups, never inside one.
+pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui, compact: bool) {
     ui.horizontal_wrapped(|ui| {
-        ui.selectable_value(&mut app.tool, Tool::Add, "Add");
-        ui.selectable_value(&mut app.tool, Tool::Remove, "Remove");
-        ui.selectable_value(&mut app.tool, Tool::Hit, "Hit");
+        ui.selectable_value(&mut app.tool, Tool::Add, "Add")
+            .on_hover_text("click the view to add voxels (key A)");
+        ui.selectable_value(&mut app.tool, Tool::Remove, "Remove")
+            .on_hover_text("click the view to remove voxels (key R)");
+        ui.selectable_value(&mut app.tool, Tool::Hit, "Hit")
+            .on_hover_text("click the view to set the hit point and strike (key H)");
         ui.separator();
-        ui.label("Brush");
-        ui.add(egui::Slider::new(&mut app.sculptor.brush_radius, 0..=4));
-        ui.label("Mirror");
-        for (a, name) in ["X", "Y", "Z"].iter().enumerate() {
-            ui.checkbox(&mut app.sculptor.mirror[a], *name);
+        if !compact {
+            let brush = groups(app, true);
+            bar_row(app, ui, &brush[..2]);
+            ui.separator();
         }
-        ui.separator();
+        group(ui, 110.0);
         let undo = ui.add_enabled(app.sculptor.undo_depth() > 0, egui::Button::new("Undo"));
         let redo = ui.add_enabled(app.sculptor.redo_depth() > 0, egui::Button::new("Redo"));
+        app.mark("undo", undo.rect);
+        app.mark("redo", redo.rect);
         let (undo_key, redo_key) = undo_shortcuts(ui);
+        if let Some(tool) = tool_key(ui) {
+            app.tool = tool;
+        }
         if undo.clicked() || undo_key {
             app.undo();
         }
@@ -219,36 +335,140 @@ pub(super) fn sculpt_bar(app: &mut EditorApp, ui: &mut egui::Ui) {
             app.redo();
         }
     });
-    ui.horizontal_wrapped(|ui| {
-        egui::ComboBox::from_id_salt("primitive")
-            .selected_text(PRIMITIVES[app.primitive].name)
-            .show_ui(ui, |ui| {
-                for (i, shape) in PRIMITIVES.iter().enumerate() {
-                    ui.selectable_value(&mut app.primitive, i, shape.name);
-                }
-            });
-        ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"))
-            .on_hover_text("longest side of the new shape, voxels");
-        if ui.button("New").clicked() {
-            let (spec, side) = (PRIMITIVES[app.primitive].name, app.primitive_side);
-            app.edit(|s| s.load_primitive(spec, side));
+    if !compact {
+        let shape = groups(app, false);
+        ui.horizontal_wrapped(|ui| bar_row(app, ui, &shape));
+    }
+}
+
+/// The sculpting controls a compact window shows at the top of the parameters panel, a row
+/// per group (a row that still does not fit wraps its button under its slider).
+pub(super) fn sculpt_controls(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.heading("Sculpt");
+    for (_, g) in groups(app, true) {
+        ui.horizontal_wrapped(|ui| {
+            ui.spacing_mut().slider_width = COMPACT_SLIDER_PX;
+            g(app, ui);
+        });
+    }
+    ui.separator();
+}
+
+/// Starts a new row of a wrapping layout unless `width_px` more fit in this one: egui wraps
+/// before a single widget that does not fit, but a slider with its value box is laid out as
+/// one nested row, which it would let run past the edge (behind the parameters panel).
+fn group(ui: &mut egui::Ui, width_px: f32) {
+    // (A wrapping row's `available_width` is the whole row's: it could wrap.)
+    let left_px = ui.max_rect().max.x - ui.cursor().min.x;
+    let row_started = ui.cursor().min.x > ui.max_rect().min.x + 1.0;
+    if row_started && left_px < width_px {
+        ui.end_row();
+    }
+}
+
+/// Slider width in the sculpting bar, pixels (the value box comes beside it).
+const SLIDER_PX: f32 = 80.0;
+
+/// Slider width in the compact window's sculpting controls, pixels.
+const COMPACT_SLIDER_PX: f32 = 60.0;
+
+/// A group of sculpting controls: how wide it is in the sculpting bar (pixels, its value
+/// boxes included) and what draws it.
+type Group = (f32, fn(&mut EditorApp, &mut egui::Ui));
+
+/// The sculpting groups in order: the brush and mirror (in the bar's first row when wide,
+/// `with_brush`), then New, Hollow, Resample and the section plane.
+fn groups(app: &EditorApp, with_brush: bool) -> Vec<Group> {
+    let section_px = if app.camera.section.is_some() {
+        SLIDER_PX + 170.0
+    } else {
+        100.0
+    };
+    let brush: [Group; 2] = [(SLIDER_PX + 95.0, brush), (150.0, mirror)];
+    let shape: [Group; 4] = [
+        (SLIDER_PX + 200.0, new_shape),
+        (SLIDER_PX + 140.0, hollow),
+        (SLIDER_PX + 160.0, resample),
+        (section_px, section_controls),
+    ];
+    let mut all = Vec::new();
+    if with_brush {
+        all.extend(brush);
+    }
+    all.extend(shape);
+    all
+}
+
+/// Groups in one wrapping row of the sculpting bar, separated, a row break before a group that
+/// would not fit.
+fn bar_row(app: &mut EditorApp, ui: &mut egui::Ui, groups: &[Group]) {
+    ui.spacing_mut().slider_width = SLIDER_PX;
+    for (i, (width_px, g)) in groups.iter().enumerate() {
+        if i > 0 {
+            ui.separator();
         }
-        ui.separator();
-        ui.add(egui::Slider::new(&mut app.hollow_wall, 1..=4).suffix(" wall"));
-        if ui.button("Hollow").clicked() {
-            let w = app.hollow_wall;
-            app.edit(|s| s.hollow(w));
-        }
-        ui.separator();
-        ui.add(egui::Slider::new(&mut app.resample_side, 2..=32).suffix(" vox"))
-            .on_hover_text("resolution: the object's longest side, voxels");
-        if ui.button("Resample").clicked() {
-            let n = app.resample_side;
-            app.edit(|s| s.resample(n));
-        }
-        ui.separator();
-        section_controls(app, ui);
-    });
+        group(ui, *width_px);
+        g(app, ui);
+    }
+}
+
+/// Brush radius.
+fn brush(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.label("Brush");
+    ui.add(egui::Slider::new(&mut app.sculptor.brush_radius, 0..=4));
+}
+
+/// The mirror planes.
+fn mirror(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.label("Mirror");
+    for (a, name) in ["X", "Y", "Z"].iter().enumerate() {
+        ui.checkbox(&mut app.sculptor.mirror[a], *name);
+    }
+}
+
+/// A new primitive of a chosen size.
+fn new_shape(app: &mut EditorApp, ui: &mut egui::Ui) {
+    egui::ComboBox::from_id_salt("primitive")
+        .selected_text(PRIMITIVES[app.primitive].name)
+        .width(70.0)
+        .show_ui(ui, |ui| {
+            for (i, shape) in PRIMITIVES.iter().enumerate() {
+                ui.selectable_value(&mut app.primitive, i, shape.name);
+            }
+        });
+    group(ui, SLIDER_PX + 60.0);
+    ui.add(egui::Slider::new(&mut app.primitive_side, 4..=32).suffix(" vox"))
+        .on_hover_text("longest side of the new shape, voxels");
+    group(ui, 45.0);
+    if ui.button("New").clicked() {
+        let (spec, side) = (PRIMITIVES[app.primitive].name, app.primitive_side);
+        app.edit(|s| s.load_primitive(spec, side));
+    }
+}
+
+/// Hollow with a chosen wall.
+fn hollow(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.add(egui::Slider::new(&mut app.hollow_wall, 1..=4).suffix(" wall"));
+    group(ui, 65.0);
+    let hollow = ui.button("Hollow");
+    app.mark("hollow", hollow.rect);
+    if hollow.clicked() {
+        let w = app.hollow_wall;
+        app.edit(|s| s.hollow(w));
+    }
+}
+
+/// Resample to a chosen resolution.
+fn resample(app: &mut EditorApp, ui: &mut egui::Ui) {
+    ui.add(egui::Slider::new(&mut app.resample_side, 2..=32).suffix(" vox"))
+        .on_hover_text("resolution: the object's longest side, voxels");
+    group(ui, 80.0);
+    let resample = ui.button("Resample");
+    app.mark("resample", resample.rect);
+    if resample.clicked() {
+        let n = app.resample_side;
+        app.edit(|s| s.resample(n));
+    }
 }
 
 /// The view's section plane: off, or a cut across x, y or z at a chosen height, so that a
@@ -276,6 +496,7 @@ fn section_controls(app: &mut EditorApp, ui: &mut egui::Ui) {
             .filter(|s| s.axis == axis)
             .map_or(centre, |s| s.at);
         let side = super::sculptor::BOX_SIDE as f32;
+        group(ui, SLIDER_PX + 70.0);
         ui.add(egui::Slider::new(&mut at, 0.0..=side).suffix(" vox"));
         view3d::Section { axis, at }
     });
@@ -298,6 +519,7 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
     let size = ui.available_size();
     let (response, full_painter) = ui.allocate_painter(size, Sense::click_and_drag());
     let (rect, caption) = view_and_caption(response.rect);
+    app.mark("view", rect);
     let painter = full_painter.with_clip_rect(rect);
     if !app.framed {
         app.camera
@@ -376,6 +598,7 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
             painter.circle_stroke(at, 7.0, Stroke::new(1.0, faint));
         }
     }
+    import_choice(app, ui, rect);
     let dims = app.sculptor.bounds().map(|(_, d)| d).unwrap_or([0; 3]);
     full_painter.rect_filled(caption, 0.0, Color32::from_gray(22));
     full_painter.text(
@@ -398,6 +621,39 @@ pub(super) fn view(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter)
     );
 }
 
+/// While a large import is previewed: Keep, the other fit and Cancel, over the top of the
+/// view (the layout below does not move).
+fn import_choice(app: &mut EditorApp, ui: &mut egui::Ui, view: Rect) {
+    let Some(fit) = app.pending_import() else {
+        return;
+    };
+    let bar = Rect::from_min_size(
+        view.min + Vec2::new(6.0, 6.0),
+        Vec2::new(view.width(), 24.0),
+    );
+    ui.scope_builder(egui::UiBuilder::new().max_rect(bar), |ui| {
+        ui.horizontal(|ui| {
+            let keep = ui.button("Keep");
+            app.mark("import_keep", keep.rect);
+            let (other, label) = match fit {
+                super::ImportFit::Resample => (super::ImportFit::Crop, "Crop instead"),
+                super::ImportFit::Crop => (super::ImportFit::Resample, "Resample instead"),
+            };
+            let switch = ui.button(label);
+            app.mark("import_switch", switch.rect);
+            let cancel = ui.button("Cancel");
+            app.mark("import_cancel", cancel.rect);
+            if keep.clicked() {
+                app.keep_import();
+            } else if switch.clicked() {
+                app.set_import_fit(other);
+            } else if cancel.clicked() {
+                app.cancel_import();
+            }
+        });
+    });
+}
+
 /// The view's base colour for a material.
 fn material_colour(m: MaterialChoice) -> [u8; 3] {
     use MaterialChoice::*;
@@ -413,7 +669,17 @@ fn material_colour(m: MaterialChoice) -> [u8; 3] {
     }
 }
 
-pub(super) fn controls(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSetter) {
+/// The parameters panel (it scrolls): in a compact window the sculpting controls first, then
+/// the parameters in the host's five groups and expression.
+pub(super) fn controls(
+    app: &mut EditorApp,
+    ui: &mut egui::Ui,
+    setter: &ParamSetter,
+    compact: bool,
+) {
+    if compact {
+        sculpt_controls(app, ui);
+    }
     let params = app.params.clone();
     let p = &params.material;
     ui.heading("Material");

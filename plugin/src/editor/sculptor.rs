@@ -251,6 +251,16 @@ impl Sculptor {
         true
     }
 
+    /// Takes the last step back without leaving it to redo (a previewed import the user
+    /// cancelled); false when there is nothing to take back.
+    pub fn retract(&mut self) -> bool {
+        let Some(prev) = self.undo.pop() else {
+            return false;
+        };
+        self.cells = prev;
+        true
+    }
+
     /// Steps forward again; false when there is nothing to redo.
     pub fn redo(&mut self) -> bool {
         let Some(next) = self.redo.pop() else {

@@ -287,20 +287,79 @@ fn a_section_shows_the_inside_of_a_hollow_object() {
     assert_eq!(view3d::visible_faces(&s, &cam).len(), whole);
 }
 
+/// The whole window laid out headless (egui, the real panels) at the stated minimum, a
+/// mid size and the default: every control the scripted window test clicks lies inside the
+/// window and inside its own panel (nothing runs behind the parameters panel, as the Resample
+/// value did at the default size), and the 3D view keeps room (at least 200 x 100 px at the
+/// minimum). A compact window keeps the file actions in a File menu.
 #[test]
-fn panels_leave_the_3d_view_room_down_to_the_minimum_window() {
-    // The default window (the editor's own size) keeps the 300 px parameters panel and the
-    // 170 px spectrum; at the stated minimum the 3D view keeps half the width and, with the
-    // top bar and two sculpt rows (about 110 px), a third of the height.
+fn every_control_is_inside_the_window_down_to_the_minimum() {
     use super::layout::{PanelSizes, MIN_WINDOW_PX};
+    let host = TestHost::default();
+    let setter = ParamSetter { raw_context: &host };
     let default = PanelSizes::for_window([WINDOW_SIZE.0 as f32, WINDOW_SIZE.1 as f32]);
     assert_eq!((default.controls_px, default.spectrum_px), (300.0, 170.0));
-    let [w, h] = MIN_WINDOW_PX;
-    let small = PanelSizes::for_window(MIN_WINDOW_PX);
-    assert!(w - small.controls_px >= 0.5 * w, "{small:?}");
-    assert!(h - small.spectrum_px - 110.0 >= h / 3.0, "{small:?}");
-    // The spectrum strip keeps room for its plot under the status line.
-    assert!(small.spectrum_px - 30.0 >= 60.0);
+    for [w, h] in [
+        MIN_WINDOW_PX,
+        [800.0, 500.0],
+        [WINDOW_SIZE.0 as f32, WINDOW_SIZE.1 as f32],
+    ] {
+        let mut app = app_with(block([6, 6, 6]));
+        app.dump = Some(super::dump::Dump::to(std::env::temp_dir().join("unused")));
+        let ctx = egui::Context::default();
+        let sizes = PanelSizes::for_window([w, h]);
+        let mut rects = Vec::new();
+        // Two frames: panels and wrapped rows settle on the second.
+        for _ in 0..2 {
+            let input = egui::RawInput {
+                screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, [w, h].into())),
+                ..Default::default()
+            };
+            let _ = ctx.run_ui(input, |ui| super::layout::window(&mut app, ui, &setter));
+            rects = app.dump.as_ref().unwrap().rects().to_vec();
+            app.dump = Some(super::dump::Dump::to(std::env::temp_dir().join("unused")));
+        }
+        let get = |name: &str| {
+            rects
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, r)| *r)
+                .unwrap_or_else(|| panic!("{w}x{h}: {name} not drawn: {rects:?}"))
+        };
+        let central_right = w - sizes.controls_px;
+        let window = egui::Rect::from_min_size(egui::Pos2::ZERO, [w, h].into());
+        for name in [
+            "path", "import", "undo", "redo", "hollow", "resample", "view",
+        ] {
+            let r = get(name);
+            assert!(
+                window.contains_rect(r),
+                "{w}x{h}: {name} at {r:?}; {rects:?}"
+            );
+        }
+        for name in ["undo", "redo", "view"] {
+            let r = get(name);
+            assert!(
+                r.max.x <= central_right + 1.0,
+                "{w}x{h}: {name} at {r:?} runs behind the panel"
+            );
+        }
+        let (hollow, resample) = (get("hollow"), get("resample"));
+        if sizes.compact {
+            get("file_menu");
+            assert!(rects.iter().all(|(n, _)| *n != "save_preset"));
+            // The shape operations sit in the parameters panel.
+            assert!(hollow.min.x >= central_right && resample.min.x >= central_right);
+        } else {
+            get("save_preset");
+            assert!(hollow.max.x <= central_right && resample.max.x <= central_right);
+        }
+        let view = get("view");
+        assert!(
+            view.width() >= 200.0 && view.height() >= 100.0,
+            "{w}x{h}: view {view:?}"
+        );
+    }
 }
 
 #[test]
@@ -708,7 +767,7 @@ fn a_quick_ctrl_z_tap_undoes_every_time() {
             ],
             ..Default::default()
         };
-        let _ = ctx.run_ui(input, |ui| super::layout::sculpt_bar(app, ui));
+        let _ = ctx.run_ui(input, |ui| super::layout::sculpt_bar(app, ui, false));
     };
     for left in [2, 1, 0] {
         frame(egui::Modifiers::COMMAND, &mut app);
@@ -726,6 +785,82 @@ fn a_quick_ctrl_z_tap_undoes_every_time() {
     );
 }
 
+/// The tool keys through the real sculpting bar: A, R and H pick Add, Remove and Hit from
+/// the key event itself; a key with a modifier (Ctrl+A) picks nothing.
+#[test]
+fn tool_keys_pick_the_tool() {
+    let mut app = app_with(block([4, 4, 4]));
+    let ctx = egui::Context::default();
+    let press = |key: egui::Key, modifiers: egui::Modifiers, app: &mut EditorApp| {
+        let input = egui::RawInput {
+            events: vec![egui::Event::Key {
+                key,
+                physical_key: None,
+                pressed: true,
+                repeat: false,
+                modifiers,
+            }],
+            ..Default::default()
+        };
+        let _ = ctx.run_ui(input, |ui| super::layout::sculpt_bar(app, ui, false));
+        app.tool
+    };
+    let none = egui::Modifiers::NONE;
+    assert_eq!(press(egui::Key::H, none, &mut app), Tool::Hit);
+    assert_eq!(press(egui::Key::R, none, &mut app), Tool::Remove);
+    assert_eq!(
+        press(egui::Key::A, egui::Modifiers::COMMAND, &mut app),
+        Tool::Remove
+    );
+    assert_eq!(press(egui::Key::A, none, &mut app), Tool::Add);
+}
+
+/// The state dump a scripted window test reads: the object, undo depth, tool, hit and
+/// message as the app holds them, one `key=value` per line (a message's line break would
+/// start a bogus key, so it is flattened).
+#[test]
+fn the_state_dump_says_what_the_app_holds() {
+    let mut app = app_with(block([4, 3, 2]));
+    app.camera = front_camera();
+    app.tool = Tool::Add;
+    app.click([0.0, 0.0]);
+    app.message = Some(("two\nlines".into(), true));
+    let state = app.dump_state([480.0, 360.0]);
+    let get = |k: &str| {
+        state
+            .iter()
+            .find(|(key, _)| *key == k)
+            .map(|(_, v)| v.clone())
+    };
+    assert_eq!(get("voxels"), Some(app.sculptor.count().to_string()));
+    assert_eq!(get("undo").as_deref(), Some("1"));
+    assert_eq!(get("tool").as_deref(), Some("add"));
+    assert_eq!(get("window").as_deref(), Some("480,360"));
+    assert_eq!(get("message_is_error").as_deref(), Some("true"));
+    assert_eq!(get("import_pending").as_deref(), Some("no"));
+    let p = &app.params.strike;
+    let hit = format!(
+        "{},{},{}",
+        p.hit_x.value(),
+        p.hit_y.value(),
+        p.hit_z.value()
+    );
+    assert_eq!(get("hit"), Some(hit));
+
+    let file = std::env::temp_dir().join(format!("mf-dump-{}.txt", std::process::id()));
+    let mut dump = super::dump::Dump::to(file.clone());
+    dump.mark(
+        "view",
+        egui::Rect::from_min_max([1.0, 2.0].into(), [30.0, 40.0].into()),
+    );
+    dump.write(&state);
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(text.contains("message=two lines\n"), "{text}");
+    assert!(text.ends_with("rect.view=1,2,30,40\n"), "{text}");
+    assert_eq!(text.lines().count(), state.len() + 1);
+    std::fs::remove_file(&file).ok();
+}
+
 /// The message under the top bar has a line of its own: the bar is as tall with a message
 /// as without, so nothing below it moves when one appears or clears (it moved by 18 px).
 #[test]
@@ -738,7 +873,7 @@ fn a_message_does_not_move_the_window() {
         let mut h = 0.0;
         let _ = ctx.run_ui(egui::RawInput::default(), |ui| {
             let r = ui
-                .scope(|ui| super::layout::top_bar(app, ui, &setter))
+                .scope(|ui| super::layout::top_bar(app, ui, &setter, false))
                 .response;
             h = r.rect.height();
         });
@@ -808,11 +943,12 @@ fn file_actions_say_what_they_did() {
 }
 
 /// An idle window does not redraw ten times a second: without an engine, a solve, a match or
-/// ringing notes it asks for a redraw every 0.5 s; while a match runs, every 0.1 s.
+/// ringing notes it asks for a redraw every 2 s (solves repaint it through the engine's status
+/// watcher); while a match runs, every 0.1 s.
 #[test]
 fn an_idle_window_redraws_slowly() {
     let mut app = app_with(block([4, 4, 4]));
-    assert_eq!(app.redraw_after(), std::time::Duration::from_millis(500));
+    assert_eq!(app.redraw_after(), std::time::Duration::from_secs(2));
     let missing = std::env::temp_dir().join("modalforge-no-such-recording.wav");
     app.path = missing.display().to_string();
     app.start_match();
@@ -971,18 +1107,55 @@ fn models_larger_than_the_box_are_fitted_and_meshes_voxelised() {
     let big = modalforge::shape::VoxelGrid::from_fn([48, 24, 12], 1.0, |_, _, _| true).unwrap();
     modalforge::shape::vox::write_vox(&big, &vox).unwrap();
     app.path = vox.display().to_string();
+    let before = app.params.object.read().unwrap().clone();
     app.import();
+    // Previewed, resampled to fit, and not yet the object the engine solves.
     let (m, error) = app.message.clone().unwrap();
     assert!(!error, "{m}");
     assert!(
         m.contains("48x24x12, 13824 voxels, resampled to 32x16x8 (4096 voxels)")
-            && m.contains("Ctrl+Z"),
+            && m.contains("preview"),
         "{m}"
     );
+    assert_eq!(app.pending_import(), Some(ImportFit::Resample));
     assert_eq!(app.sculptor.bounds().unwrap().1, [32, 16, 8]);
     assert_eq!(app.sculptor.count(), 4096);
+    assert_eq!(*app.params.object.read().unwrap(), before);
+    // Cropped instead: the central 32 of the 48 along x, the rest whole (32 * 24 * 12).
+    app.set_import_fit(ImportFit::Crop);
+    let (m, _) = app.message.clone().unwrap();
+    assert!(m.contains("cropped to 32x24x12 (9216 voxels)"), "{m}");
+    assert_eq!(app.sculptor.count(), 9216);
+    assert_eq!(app.sculptor.undo_depth(), 1);
+    // Cancelled: the object before is back, with nothing to redo and nothing solved.
+    app.cancel_import();
+    assert_eq!(app.pending_import(), None);
+    assert_eq!(app.sculptor.bounds().unwrap().1, [4, 4, 4]);
+    assert_eq!(
+        (app.sculptor.undo_depth(), app.sculptor.redo_depth()),
+        (0, 0)
+    );
+    assert_eq!(*app.params.object.read().unwrap(), before);
+    // Kept: it becomes the object, one undo step.
+    app.import();
+    app.keep_import();
+    let (m, error) = app.message.clone().unwrap();
+    assert!(
+        !error && m.contains("32x16x8, 4096 voxels (resampled)") && m.contains("Ctrl+Z"),
+        "{m}"
+    );
+    assert_eq!(app.pending_import(), None);
+    let published = app.params.object.read().unwrap().to_grid().unwrap();
+    assert_eq!((published.dims(), published.count()), ([32, 16, 8], 4096));
     assert!(app.undo());
     assert_eq!(app.sculptor.bounds().unwrap().1, [4, 4, 4]);
+    // A sculpting edit on a preview keeps it.
+    app.import();
+    app.camera = front_camera();
+    app.tool = Tool::Add;
+    app.click([0.0, 0.0]);
+    assert_eq!(app.pending_import(), None);
+    assert!(app.sculptor.count() > 4096);
 
     let obj = dir.join("brick.obj");
     let v = [
