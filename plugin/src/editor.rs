@@ -442,7 +442,7 @@ impl EditorApp {
     /// notes ring: the status line's timer and counters), else every [`IDLE_REDRAW`]: solves
     /// repaint it through the engine's status watcher, parameter changes through nice-plug,
     /// so the idle redraw only catches a note the host starts. An idle window redrawing 10
-    /// times a second cost about a fifth of a core; every 0.5 s, 5.4 % under Xvfb (most of it
+    /// times a second cost about a fifth of a core; every 0.5 s, 5.7 % under Xvfb (most of it
     /// Mesa's software rasteriser).
     pub fn redraw_after(&self) -> std::time::Duration {
         let live = self.matching.is_some()
