@@ -600,7 +600,8 @@ impl EditorApp {
                 self.framed = false;
                 (
                     format!(
-                        "{name}: {read}, {said} to fit the {max}^3 box (a preview): Keep it,                          try the other fit, or Cancel",
+                        "{name}: {read}, {said} to fit the {max}^3 box (a preview): Keep \
+                         it, try the other fit, or Cancel",
                         max = crate::sculpt::MAX_SIDE
                     ),
                     false,

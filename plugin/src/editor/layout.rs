@@ -152,7 +152,10 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
                 "Import size: voxels along the longest side of an imported mesh, or of a .vox \
                  resampled to fit the box",
             );
-        if import_side.changed() && app.pending_import() == Some(super::ImportFit::Resample) {
+        // Re-fit a previewed import once the value settles, not at every step of a drag.
+        let settled =
+            (import_side.changed() && !import_side.dragged()) || import_side.drag_stopped();
+        if settled && app.pending_import() == Some(super::ImportFit::Resample) {
             app.show_import();
         }
         if !compact {

@@ -1114,7 +1114,7 @@ fn models_larger_than_the_box_are_fitted_and_meshes_voxelised() {
     assert!(!error, "{m}");
     assert!(
         m.contains("48x24x12, 13824 voxels, resampled to 32x16x8 (4096 voxels)")
-            && m.contains("preview"),
+            && m.contains("(a preview): Keep it, try the other fit, or Cancel"),
         "{m}"
     );
     assert_eq!(app.pending_import(), Some(ImportFit::Resample));
