@@ -427,19 +427,25 @@ impl VoxelGrid {
                 hi[a] = hi[a].max(v[a]);
             }
         }
-        self.window(lo, [0, 1, 2].map(|a| hi[a] - lo[a] + 1))
+        self.copy_box(&solid, lo, [0, 1, 2].map(|a| hi[a] - lo[a] + 1))
     }
 
     /// The box of `dims` voxels starting at voxel `lo`, fills kept (a crop; what lies outside
     /// this grid is empty).
     pub fn window(&self, lo: [usize; 3], dims: [usize; 3]) -> VoxelGrid {
+        self.copy_box(&self.solid_voxels(), lo, dims)
+    }
+
+    /// [`VoxelGrid::window`] given this grid's solid voxels (so a caller that has them does
+    /// not scan the grid again).
+    fn copy_box(&self, solid: &[[usize; 3]], lo: [usize; 3], dims: [usize; 3]) -> VoxelGrid {
         let mut out = VoxelGrid {
             dims,
             voxel_size_m: self.voxel_size_m,
             occupied: vec![false; dims.iter().product()],
             partial: BTreeMap::new(),
         };
-        for v in self.solid_voxels() {
+        for &v in solid {
             if (0..3).all(|a| v[a] >= lo[a] && v[a] - lo[a] < dims[a]) {
                 let f = self.fill_at(v[0] as isize, v[1] as isize, v[2] as isize);
                 out.set_fill(v[0] - lo[0], v[1] - lo[1], v[2] - lo[2], f);
