@@ -100,14 +100,18 @@ impl FemModel {
         let cut = (!grid.is_binary())
             .then(|| cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind)));
         let mut scratch = cut.as_ref().map(|c| c.scratch());
-        let mut pending: Vec<(usize, Vec<f64>)> = Vec::with_capacity(cut::CUT_BATCH);
+        let subcells = cut.as_ref().map_or(0, |c| c.per_axis().pow(3));
+        // The batch: element numbers, and their sub-cell fills side by side.
+        let mut pending: Vec<usize> = Vec::with_capacity(cut::CUT_BATCH);
+        let mut fills = vec![0.0; subcells * cut::CUT_BATCH];
         let mut slots = vec![0usize; nloc * nloc];
         let mut flush =
-            |pending: &mut Vec<(usize, Vec<f64>)>, k: &mut [[f64; 9]], m: &mut [[f64; 9]]| {
+            |pending: &mut Vec<usize>, fills: &[f64], k: &mut [[f64; 9]], m: &mut [[f64; 9]]| {
                 if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
-                    let fills: Vec<&[f64]> = pending.iter().map(|(_, f)| &f[..]).collect();
-                    cut.matrices_batch(&fills, scratch, |j, ke, me| {
-                        let e = pending[j].0;
+                    let batch: Vec<&[f64]> =
+                        fills.chunks_exact(subcells).take(pending.len()).collect();
+                    cut.matrices_batch(&batch, scratch, |j, ke, me| {
+                        let e = pending[j];
                         let nodes = &elements[e * nloc..(e + 1) * nloc];
                         sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
                     });
@@ -117,10 +121,12 @@ impl FemModel {
         let mut unit_slots = vec![0usize; nloc * nloc];
         for (e, v) in voxels.iter().enumerate() {
             match (grid.subcell_fill(grid.index(v[0], v[1], v[2])), &cut) {
-                (Some(fill), Some(cut)) => {
-                    pending.push((e, fill.coarsened(cut.per_axis())));
+                (Some(fill), Some(_)) => {
+                    let at = pending.len() * subcells;
+                    fill.coarsened_into(&mut fills[at..at + subcells]);
+                    pending.push(e);
                     if pending.len() == cut::CUT_BATCH {
-                        flush(&mut pending, &mut k, &mut m);
+                        flush(&mut pending, &fills, &mut k, &mut m);
                     }
                 }
                 _ => {
@@ -130,7 +136,7 @@ impl FemModel {
                 }
             }
         }
-        flush(&mut pending, &mut k, &mut m);
+        flush(&mut pending, &fills, &mut k, &mut m);
         Ok(FemModel {
             kind,
             poisson_ratio,

@@ -10,9 +10,14 @@
 //! of the incompatible modes for hex8i. `alpha` ([`EMPTY_SUBCELL_FLOOR`]) keeps the bubble block
 //! positive definite when sub-cells are empty, as the finite cell method's `alpha` does.
 
-use super::element::{condense, elasticity, integrate_box, BoxIntegrals, ElementKind};
+use super::element::{
+    condense_blocks, elasticity, integrate_box, BoxIntegrals, ElementKind, BUBBLE_DOFS,
+    BUBBLE_FULL, NODAL_DOFS,
+};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
+
+mod tensor;
 
 /// Partial voxels evaluated together: their fill-weighted sums are one matrix product per
 /// batch (`[entries x sub-cells] x [sub-cells x batch]`), which runs at matrix-product speed
@@ -43,12 +48,32 @@ pub fn subcells_per_axis(kind: ElementKind) -> usize {
 pub struct CutElement {
     kind: ElementKind,
     per_axis: usize,
-    /// Uncondensed stiffness of each sub-cell (x fastest) as the columns of one matrix,
-    /// `(3 (n + bubbles))^2` rows, one column per sub-cell.
+    integrals: Integrals,
+}
+
+/// How a cut element's fill-weighted sums are evaluated.
+#[derive(Clone, Debug)]
+enum Integrals {
+    /// Linear elements: a table of sub-cell matrices times the batch's fills (one matrix
+    /// product per batch; the table is small).
+    Table(Box<SubcellTable>),
+    /// hex27: sum factorisation on the 1D sub-cell integrals ([`tensor`]).
+    Tensor(tensor::Hex27Subcells),
+}
+
+/// Every sub-cell's matrices, one column per sub-cell, packed: only the upper triangle of a
+/// symmetric matrix, and the mass as one scalar block (it is `M_ab delta_cd`), so the batch
+/// product does 2.3x less work than with whole matrices.
+#[derive(Clone, Debug)]
+struct SubcellTable {
+    /// Uncondensed stiffness of each sub-cell (x fastest) as the columns of one matrix: the
+    /// upper triangle, row by row, of the `dofs x dofs` matrix, then (hex8i) the Taylor sums.
     stiffness: Mat<f64>,
-    /// Mass of each sub-cell, `(3 n)^2` rows, one column per sub-cell.
+    /// Scalar mass of each sub-cell: the upper triangle of the `n x n` node block.
     mass: Mat<f64>,
-    /// Rows of `stiffness` that are the uncondensed stiffness; for hex8i the rest are, per
+    /// Uncondensed DOFs, `3 (n + bubbles)`.
+    dofs: usize,
+    /// Rows of `stiffness` that are the packed stiffness; for hex8i the rest are, per
     /// sub-cell, `int B dV` of the 9 bubble DOFs and the 24 nodal DOFs (Voigt, 6 each) and the
     /// sub-cell's volume: the Taylor correction's sums.
     kfull_len: usize,
@@ -65,17 +90,34 @@ pub struct CutScratch {
     kfull: Mat<f64>,
     /// Mass of the batch, one column per element.
     mass: Mat<f64>,
-    /// One element's uncondensed stiffness (Taylor-corrected in place).
-    column: Vec<f64>,
-    /// One element's condensed stiffness.
+    /// One element's unpacked uncondensed stiffness (linear elements).
+    unpacked: Vec<f64>,
+    /// One element's condensed stiffness, and its mass.
     k: Vec<f64>,
-    condense: Vec<f64>,
+    m: Vec<f64>,
+    tensor: tensor::TensorScratch,
 }
 
 impl CutElement {
     /// Integrates the `per_axis^3` sub-cells of `kind` for Poisson's ratio `nu`.
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);
+        let integrals = if kind == ElementKind::Hex27 {
+            Integrals::Tensor(tensor::Hex27Subcells::new(per_axis, nu))
+        } else {
+            Integrals::Table(Box::new(SubcellTable::new(kind, nu, per_axis)))
+        };
+        Self {
+            kind,
+            per_axis,
+            integrals,
+        }
+    }
+}
+
+impl SubcellTable {
+    /// Integrates every sub-cell of `kind` (hex8, hex8i) over `per_axis^3` sub-cells.
+    fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let step = 2.0 / per_axis as f64;
         let mut stiffness: Vec<Vec<f64>> = Vec::new();
         let mut mass: Vec<Vec<f64>> = Vec::new();
@@ -94,8 +136,9 @@ impl CutElement {
                         mut strain,
                         ..
                     } = integrate_box(kind, nu, lo, hi);
-                    stiffness.push(kfull);
-                    mass.push(m);
+                    let nall3 = (kfull.len() as f64).sqrt() as usize;
+                    stiffness.push(upper_triangle(&kfull, nall3, 1));
+                    mass.push(upper_triangle(&m, ndof, 3));
                     if kind == ElementKind::Hex8Incompatible {
                         bubble_strain.push(strain.split_off(ndof));
                         nodal_strain.push(strain);
@@ -114,24 +157,31 @@ impl CutElement {
             }
         }
         let table = |cols: &[Vec<f64>]| Mat::from_fn(cols[0].len(), cols.len(), |i, j| cols[j][i]);
-        let kfull_len = {
-            let nall = if kind == ElementKind::Hex8Incompatible {
-                kind.nodes() + 3
-            } else {
-                kind.nodes()
-            };
-            9 * nall * nall
+        let nall = if kind == ElementKind::Hex8Incompatible {
+            kind.nodes() + 3
+        } else {
+            kind.nodes()
         };
+        let dofs = 3 * nall;
         Self {
-            kind,
-            per_axis,
             stiffness: table(&stiffness),
             mass: table(&mass),
-            kfull_len,
+            dofs,
+            kfull_len: dofs * (dofs + 1) / 2,
             elasticity: elasticity(nu),
         }
     }
+}
 
+/// The upper triangle (row by row) of the `n x n` row-major `a`, every `step`-th row and column.
+fn upper_triangle(a: &[f64], n: usize, step: usize) -> Vec<f64> {
+    (0..n)
+        .step_by(step)
+        .flat_map(|i| (i..n).step_by(step).map(move |j| a[i * n + j]))
+        .collect()
+}
+
+impl CutElement {
     /// Sub-cells per axis.
     pub fn per_axis(&self) -> usize {
         self.per_axis
@@ -140,13 +190,29 @@ impl CutElement {
     /// Buffers for [`CutElement::matrices_batch`].
     pub fn scratch(&self) -> CutScratch {
         let ndof = 3 * self.kind.nodes();
+        let (table_rows, mass_rows, subcells, batch) = match &self.integrals {
+            Integrals::Table(t) => (
+                t.stiffness.nrows(),
+                t.mass.nrows(),
+                t.stiffness.ncols(),
+                CUT_BATCH,
+            ),
+            Integrals::Tensor(_) => (0, 0, 0, 0),
+        };
         CutScratch {
-            weights: Mat::zeros(self.stiffness.ncols(), CUT_BATCH),
-            kfull: Mat::zeros(self.stiffness.nrows(), CUT_BATCH),
-            mass: Mat::zeros(self.mass.nrows(), CUT_BATCH),
-            column: vec![0.0; self.kfull_len],
+            weights: Mat::zeros(subcells, batch),
+            kfull: Mat::zeros(table_rows, batch),
+            mass: Mat::zeros(mass_rows, batch),
+            unpacked: match &self.integrals {
+                Integrals::Table(t) => vec![0.0; t.dofs * t.dofs],
+                Integrals::Tensor(_) => Vec::new(),
+            },
             k: vec![0.0; ndof * ndof],
-            condense: Vec::new(),
+            m: vec![0.0; ndof * ndof],
+            tensor: match &self.integrals {
+                Integrals::Table(_) => tensor::TensorScratch::default(),
+                Integrals::Tensor(t) => t.scratch(),
+            },
         }
     }
 
@@ -161,7 +227,17 @@ impl CutElement {
     ) {
         let count = fills.len();
         assert!(count <= CUT_BATCH, "at most CUT_BATCH elements per batch");
-        let subcells = self.stiffness.ncols();
+        let table = match &self.integrals {
+            Integrals::Tensor(tensor) => {
+                for (j, fill) in fills.iter().enumerate() {
+                    tensor.matrices(fill, &mut scratch.k, &mut scratch.m, &mut scratch.tensor);
+                    each(j, &scratch.k, &scratch.m);
+                }
+                return;
+            }
+            Integrals::Table(table) => table,
+        };
+        let subcells = table.stiffness.ncols();
         for (j, fill) in fills.iter().enumerate() {
             assert_eq!(fill.len(), subcells, "one fraction per sub-cell");
             for (c, f) in fill.iter().enumerate() {
@@ -170,8 +246,8 @@ impl CutElement {
         }
         let weights = scratch.weights.as_ref().subcols(0, count);
         for (table, out) in [
-            (&self.stiffness, &mut scratch.kfull),
-            (&self.mass, &mut scratch.mass),
+            (&table.stiffness, &mut scratch.kfull),
+            (&table.mass, &mut scratch.mass),
         ] {
             matmul(
                 out.as_mut().subcols_mut(0, count),
@@ -182,19 +258,72 @@ impl CutElement {
                 Par::Seq,
             );
         }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU supports AVX2 and FMA (checked just above), the only requirement
+            // of the `target_feature` function; it is the same safe code compiled for them.
+            unsafe { self.finish_batch_avx2(table, count, scratch, &mut each) };
+            return;
+        }
+        self.finish_batch(table, count, scratch, &mut each);
+    }
+
+    /// [`CutElement::finish_batch`] compiled for AVX2: the Taylor correction and the
+    /// condensation run on 24-wide rows, 4 lanes at a time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn finish_batch_avx2(
+        &self,
+        table: &SubcellTable,
+        count: usize,
+        scratch: &mut CutScratch,
+        each: &mut impl FnMut(usize, &[f64], &[f64]),
+    ) {
+        self.finish_batch(table, count, scratch, each);
+    }
+
+    /// The Taylor correction (hex8i) and the condensation of each summed element of a batch.
+    #[inline(always)]
+    fn finish_batch(
+        &self,
+        table: &SubcellTable,
+        count: usize,
+        scratch: &mut CutScratch,
+        each: &mut impl FnMut(usize, &[f64], &[f64]),
+    ) {
+        let n = table.dofs;
+        let (nodes, ndof) = (self.kind.nodes(), 3 * self.kind.nodes());
         for j in 0..count {
-            let (kfull, sums) = scratch.kfull.col_as_slice(j).split_at(self.kfull_len);
-            scratch.column.copy_from_slice(kfull);
-            if self.kind == ElementKind::Hex8Incompatible {
-                taylor_correction(&self.elasticity, sums, &mut scratch.column);
+            let (packed, sums) = scratch.kfull.col_as_slice(j).split_at(table.kfull_len);
+            // Unpack the stiffness (symmetric) and the mass (`M_ab delta_cd`).
+            let kfull = &mut scratch.unpacked[..n * n];
+            let mut at = 0;
+            for r in 0..n {
+                let row = &packed[at..at + n - r];
+                kfull[r * n + r..(r + 1) * n].copy_from_slice(row);
+                for (c, &v) in row.iter().enumerate().skip(1) {
+                    kfull[(r + c) * n + r] = v;
+                }
+                at += n - r;
             }
-            condense(
-                self.kind,
-                &scratch.column,
-                &mut scratch.k,
-                &mut scratch.condense,
-            );
-            each(j, &scratch.k, scratch.mass.col_as_slice(j));
+            let (mut at, mass) = (0, scratch.mass.col_as_slice(j));
+            for a in 0..nodes {
+                for b in a..nodes {
+                    for c in 0..3 {
+                        scratch.m[(3 * a + c) * ndof + 3 * b + c] = mass[at];
+                        scratch.m[(3 * b + c) * ndof + 3 * a + c] = mass[at];
+                    }
+                    at += 1;
+                }
+            }
+            if self.kind == ElementKind::Hex8Incompatible {
+                let k: &mut [f64; 24 * 24] = (&mut scratch.k[..]).try_into().expect("24 x 24");
+                condense_corrected(&table.elasticity, kfull, sums, k);
+            } else {
+                scratch.k.copy_from_slice(kfull);
+            }
+            each(j, &scratch.k, &scratch.m);
         }
     }
 
@@ -207,36 +336,43 @@ impl CutElement {
     }
 }
 
-/// Makes the incompatible modes' strains average to zero over the filled part of the cell
-/// (Taylor, Beresford and Wilson 1976): `B_b -> B_b - G`, `G = int_f B_b dV / V_f`. On a full
-/// cube the bubbles' strains already average to zero (`G = 0`); on a cut cell they do not, and
-/// the uncorrected element fails the constant-strain patch test and locks.
+/// The condensed stiffness of a cut hex8i element from its fill-weighted uncondensed
+/// stiffness `kfull` (33 x 33) and the Taylor sums, with the incompatible modes' strains made
+/// to average to zero over the filled part of the cell (Taylor, Beresford and Wilson 1976):
+/// `B_b -> B_b - G`, `G = int_f B_b dV / V_f`. On a full cube the bubbles' strains already
+/// average to zero (`G = 0`); on a cut cell they do not, and the uncorrected element fails the
+/// constant-strain patch test and locks.
 ///
 /// `sums` holds the fill-weighted `int_f B_b dV` (9 x 6), `S_u = int_f B_u dV` (24 x 6) and
-/// `V_f`; with `int_f B_b dV = V_f G`:
-/// `K_ub -= S_u^T D G`, `K_bu -= G^T D S_u`, `K_bb -= V_f G^T D G`.
-fn taylor_correction(d: &[[f64; 6]; 6], sums: &[f64], kfull: &mut [f64]) {
-    const NB: usize = 9;
-    const NU: usize = 24;
-    let full = NU + NB;
+/// `V_f`; with `int_f B_b dV = V_f G`: `K_bu -= G^T D S_u` (and `K_ub` likewise, which the
+/// condensation reads as `K_bu^T`), `K_bb -= V_f G^T D G`.
+#[inline(always)]
+fn condense_corrected(d: &[[f64; 6]; 6], kfull: &[f64], sums: &[f64], k: &mut [f64; 24 * 24]) {
+    const NB: usize = BUBBLE_DOFS;
+    const NU: usize = NODAL_DOFS;
+    const FULL: usize = BUBBLE_FULL;
     let volume = sums[6 * (NB + NU)];
     let g: [[f64; 6]; NB] =
         std::array::from_fn(|j| std::array::from_fn(|r| sums[6 * j + r] / volume));
-    let su = |i: usize| &sums[6 * (NB + i)..6 * (NB + i + 1)];
-    // D G_j once per bubble DOF; then every correction is a 6-term dot product.
+    // D G_j once per bubble DOF; S_u transposed to 6 rows of 24 for row operations.
     let dg: [[f64; 6]; NB] =
         g.map(|gj| std::array::from_fn(|r| (0..6).map(|s| d[r][s] * gj[s]).sum()));
-    let dot = |a: &[f64], b: &[f64; 6]| -> f64 { (0..6).map(|r| a[r] * b[r]).sum() };
-    for (j, dgj) in dg.iter().enumerate() {
-        for i in 0..NU {
-            let corr = dot(su(i), dgj);
-            kfull[i * full + NU + j] -= corr;
-            kfull[(NU + j) * full + i] -= corr;
-        }
-        for (i, gi) in g.iter().enumerate() {
-            kfull[(NU + i) * full + NU + j] -= volume * dot(gi, dgj);
+    let su_t: [[f64; NU]; 6] =
+        std::array::from_fn(|r| std::array::from_fn(|i| sums[6 * (NB + i) + r]));
+    let mut kbu: [[f64; NU]; NB] =
+        std::array::from_fn(|j| std::array::from_fn(|i| kfull[(NU + j) * FULL + i]));
+    for (row, dgj) in kbu.iter_mut().zip(&dg) {
+        for (su, &c) in su_t.iter().zip(dgj) {
+            row.iter_mut().zip(su).for_each(|(r, s)| *r -= c * s);
         }
     }
+    let kbb: [[f64; NB]; NB] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let gdg: f64 = (0..6).map(|r| g[i][r] * dg[j][r]).sum();
+            kfull[(NU + i) * FULL + NU + j] - volume * gdg
+        })
+    });
+    condense_blocks(kfull, FULL, &kbb, &kbu, k);
 }
 
 #[cfg(test)]
@@ -265,6 +401,43 @@ mod tests {
                 assert!(max_abs(&dk) < 1e-13 * max_abs(&unit.stiffness), "{kind:?}");
                 assert!(max_abs(&dm) < 1e-13 * max_abs(&unit.mass), "{kind:?}");
             }
+        }
+    }
+
+    #[test]
+    fn sum_factorisation_matches_the_sub_cell_table() {
+        // hex27's cut elements come from 1D integrals contracted axis by axis; the sub-cell
+        // table (the fill-weighted sum of matrices integrated on each sub-box in 3D) is an
+        // independent evaluation of the same sums. They agree to rounding: 1e-13 of the
+        // largest entry (sums of ~64 terms of mixed sign).
+        let nu = 0.3;
+        let kind = ElementKind::Hex27;
+        let n = 3 * kind.nodes();
+        for per_axis in [1, 2, 4] {
+            let cells = per_axis * per_axis * per_axis;
+            let fill: Vec<f64> = (0..cells).map(|c| ((c * 37) % 11) as f64 / 10.0).collect();
+            let cut = CutElement::new(kind, nu, per_axis);
+            let (mut k, mut m) = (vec![0.0; n * n], vec![0.0; n * n]);
+            cut.matrices(&fill, &mut k, &mut m, &mut cut.scratch());
+            let table = CutElement {
+                kind,
+                per_axis,
+                integrals: Integrals::Table(Box::new(SubcellTable::new(kind, nu, per_axis))),
+            };
+            let (mut kt, mut mt) = (vec![0.0; n * n], vec![0.0; n * n]);
+            table.matrices(&fill, &mut kt, &mut mt, &mut table.scratch());
+            let dk: Vec<f64> = k.iter().zip(&kt).map(|(a, b)| a - b).collect();
+            let dm: Vec<f64> = m.iter().zip(&mt).map(|(a, b)| a - b).collect();
+            assert!(
+                max_abs(&dk) < 1e-13 * max_abs(&kt),
+                "{per_axis}: {}",
+                max_abs(&dk)
+            );
+            assert!(
+                max_abs(&dm) < 1e-13 * max_abs(&mt),
+                "{per_axis}: {}",
+                max_abs(&dm)
+            );
         }
     }
 

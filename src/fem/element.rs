@@ -72,7 +72,7 @@ pub struct UnitElement {
 }
 
 /// Gauss-Legendre points and weights on [-1, 1].
-fn gauss(n: usize) -> (&'static [f64], &'static [f64]) {
+pub(crate) fn gauss(n: usize) -> (&'static [f64], &'static [f64]) {
     const P2: [f64; 2] = [-0.577_350_269_189_625_8, 0.577_350_269_189_625_8];
     const W2: [f64; 2] = [1.0, 1.0];
     const P3: [f64; 3] = [-0.774_596_669_241_483_4, 0.0, 0.774_596_669_241_483_4];
@@ -84,7 +84,7 @@ fn gauss(n: usize) -> (&'static [f64], &'static [f64]) {
 }
 
 /// 1D Lagrange basis of order `p` on nodes equally spaced in [-1, 1]: values and derivatives.
-fn basis_1d(p: usize, xi: f64) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn basis_1d(p: usize, xi: f64) -> ([f64; 3], [f64; 3]) {
     if p == 1 {
         ([(1.0 - xi) / 2.0, (1.0 + xi) / 2.0, 0.0], [-0.5, 0.5, 0.0])
     } else {
@@ -152,52 +152,6 @@ fn add_btdb(k: &mut [f64], ndof: usize, grad: &[[f64; 3]], d: &[[f64; 6]; 6], w:
             let v: f64 = (0..6).map(|s| cols[i][s] * db[j][s]).sum();
             k[i * ndof + j] += w * v;
         }
-    }
-}
-
-/// Solves the small SPD system `A X = B` in place by Cholesky (`A` n x n, `B` n x m, row-major).
-fn spd_solve(a: &mut [f64], n: usize, b: &mut [f64], m: usize) {
-    for j in 0..n {
-        let mut s = a[j * n + j];
-        for k in 0..j {
-            s -= a[j * n + k] * a[j * n + k];
-        }
-        let l = s.sqrt();
-        a[j * n + j] = l;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / l;
-        }
-    }
-    // Forward and back substitution on every right-hand side at once: row operations over
-    // the `m` columns (contiguous, vectorisable), each entry updated in the same order as a
-    // column-by-column substitution.
-    for i in 0..n {
-        let (done, rest) = b.split_at_mut(i * m);
-        let row = &mut rest[..m];
-        for k in 0..i {
-            let l = a[i * n + k];
-            row.iter_mut()
-                .zip(&done[k * m..(k + 1) * m])
-                .for_each(|(r, x)| *r -= l * x);
-        }
-        let d = a[i * n + i];
-        row.iter_mut().for_each(|r| *r /= d);
-    }
-    for i in (0..n).rev() {
-        let (head, tail) = b.split_at_mut((i + 1) * m);
-        let row = &mut head[i * m..];
-        for k in i + 1..n {
-            let l = a[k * n + i];
-            row.iter_mut()
-                .zip(&tail[(k - i - 1) * m..(k - i) * m])
-                .for_each(|(r, x)| *r -= l * x);
-        }
-        let d = a[i * n + i];
-        row.iter_mut().for_each(|r| *r /= d);
     }
 }
 
@@ -297,50 +251,98 @@ pub(crate) struct BoxIntegrals {
 
 /// The nodal stiffness of `kind` from its uncondensed integral `kfull` ([`integrate_box`]):
 /// the incompatible modes condensed out statically (`K = Kuu - Kua Kaa^-1 Kau`), then
-/// symmetrised. Writes `3 n` square into `k`; `scratch` is reused between calls.
-pub(crate) fn condense(kind: ElementKind, kfull: &[f64], k: &mut [f64], scratch: &mut Vec<f64>) {
+/// symmetrised. Writes `3 n` square into `k`.
+pub(crate) fn condense(kind: ElementKind, kfull: &[f64], k: &mut [f64]) {
     let ndof = 3 * kind.nodes();
     if kind == ElementKind::Hex8Incompatible {
-        let (nu_, na) = (ndof, 9);
-        let full = nu_ + na;
-        scratch.clear();
-        scratch.resize(na * na + 2 * na * nu_, 0.0);
-        let (kaa, rest) = scratch.split_at_mut(na * na);
-        let (kau, x) = rest.split_at_mut(na * nu_);
-        for i in 0..na {
-            for j in 0..na {
-                kaa[i * na + j] = kfull[(nu_ + i) * full + nu_ + j];
-            }
-            for j in 0..nu_ {
-                kau[i * nu_ + j] = kfull[(nu_ + i) * full + j];
-            }
-        }
-        x.copy_from_slice(kau);
-        spd_solve(kaa, na, x, nu_);
-        // K = Kuu - Kau^T X, a row at a time: corr_ij accumulates over s in order.
-        let mut corr = [0.0f64; 3 * 27];
-        for i in 0..nu_ {
-            let corr = &mut corr[..nu_];
-            corr.fill(0.0);
-            for s in 0..na {
-                let a = kau[s * nu_ + i];
-                corr.iter_mut()
-                    .zip(&x[s * nu_..(s + 1) * nu_])
-                    .for_each(|(c, x)| *c += a * x);
-            }
-            for j in 0..nu_ {
-                k[i * ndof + j] = kfull[i * full + j] - corr[j];
-            }
-        }
+        let kfull: &[f64; BUBBLE_FULL * BUBBLE_FULL] = kfull.try_into().expect("33 x 33");
+        let k: &mut [f64; 24 * 24] = k.try_into().expect("24 x 24");
+        condense_bubbles(kfull, k);
     } else {
         k.copy_from_slice(&kfull[..ndof * ndof]);
     }
-    // Symmetrise away rounding.
-    for i in 0..ndof {
+    // The Gauss sums leave rounding asymmetry in `kfull`.
+    symmetrise(k, ndof);
+}
+
+/// Replaces the `n x n` row-major `k` by `(k + k^T) / 2`: symmetric away from rounding.
+#[inline(always)]
+pub(crate) fn symmetrise(k: &mut [f64], n: usize) {
+    for i in 0..n {
         for j in 0..i {
-            let s = 0.5 * (k[i * ndof + j] + k[j * ndof + i]);
-            k[i * ndof + j] = s;
-            k[j * ndof + i] = s;
+            let s = 0.5 * (k[i * n + j] + k[j * n + i]);
+            k[i * n + j] = s;
+            k[j * n + i] = s;
+        }
+    }
+}
+
+/// DOFs of hex8i before condensation: 24 nodal, 9 bubble.
+pub(crate) const BUBBLE_FULL: usize = 24 + 9;
+
+/// Nodal and bubble DOFs of hex8i.
+pub(crate) const NODAL_DOFS: usize = 24;
+pub(crate) const BUBBLE_DOFS: usize = 9;
+
+/// `K = Kuu - Kub Kbb^-1 Kbu` for hex8i from the blocks of its uncondensed stiffness `kfull`.
+#[inline(always)]
+pub(crate) fn condense_bubbles(kfull: &[f64; BUBBLE_FULL * BUBBLE_FULL], k: &mut [f64; 24 * 24]) {
+    const NU: usize = NODAL_DOFS;
+    const FULL: usize = BUBBLE_FULL;
+    let kbb: [[f64; BUBBLE_DOFS]; BUBBLE_DOFS] =
+        std::array::from_fn(|i| std::array::from_fn(|j| kfull[(NU + i) * FULL + NU + j]));
+    let kbu: [[f64; NU]; BUBBLE_DOFS] =
+        std::array::from_fn(|i| std::array::from_fn(|j| kfull[(NU + i) * FULL + j]));
+    condense_blocks(kfull, FULL, &kbb, &kbu, k);
+}
+
+/// `K = Kuu - Kub Kbb^-1 Kbu`, as `Kuu - Y^T Y` with `Y = L^-1 Kbu` and `Kbb = L L^T`
+/// (Cholesky of the 9 x 9 bubble block): one triangular solve instead of two, and the
+/// correction is symmetric bit for bit, so `K` is exactly symmetric where `Kuu` is. `kuu` is
+/// read as the leading 24 x 24 block of a row-major matrix with `stride` columns. Inlined so
+/// that callers compiled for wider vectors ([`super::cut`]) vectorise it with them.
+#[inline(always)]
+pub(crate) fn condense_blocks(
+    kuu: &[f64],
+    stride: usize,
+    kbb: &[[f64; BUBBLE_DOFS]; BUBBLE_DOFS],
+    kbu: &[[f64; NODAL_DOFS]; BUBBLE_DOFS],
+    k: &mut [f64; NODAL_DOFS * NODAL_DOFS],
+) {
+    const NU: usize = NODAL_DOFS;
+    const NB: usize = BUBBLE_DOFS;
+    let mut l = [[0.0f64; NB]; NB];
+    for j in 0..NB {
+        let lj = l[j];
+        let d = (kbb[j][j] - lj[..j].iter().map(|v| v * v).sum::<f64>()).sqrt();
+        l[j][j] = d;
+        for i in j + 1..NB {
+            let dot: f64 = l[i][..j].iter().zip(&lj[..j]).map(|(a, b)| a * b).sum();
+            l[i][j] = (kbb[i][j] - dot) / d;
+        }
+    }
+    // Y = L^-1 Kbu, a row (24 wide) at a time.
+    let mut y = [[0.0f64; NU]; NB];
+    for i in 0..NB {
+        let mut row = kbu[i];
+        for p in 0..i {
+            let lip = l[i][p];
+            row.iter_mut().zip(&y[p]).for_each(|(r, y)| *r -= lip * y);
+        }
+        let inv = 1.0 / l[i][i];
+        row.iter_mut().for_each(|r| *r *= inv);
+        y[i] = row;
+    }
+    for i in 0..NU {
+        let mut corr = [0.0f64; NU];
+        for yp in &y {
+            let a = yp[i];
+            corr.iter_mut().zip(yp).for_each(|(c, y)| *c += a * y);
+        }
+        let out = &mut k[i * NU..(i + 1) * NU];
+        let kuu = &kuu[i * stride..i * stride + NU];
+        for ((o, kv), c) in out.iter_mut().zip(kuu).zip(corr) {
+            *o = kv - c;
         }
     }
 }
@@ -351,7 +353,7 @@ impl UnitElement {
         let ndof = 3 * kind.nodes();
         let BoxIntegrals { kfull, mass, .. } = integrate_box(kind, nu, [-1.0; 3], [1.0; 3]);
         let mut stiffness = vec![0.0; ndof * ndof];
-        condense(kind, &kfull, &mut stiffness, &mut Vec::new());
+        condense(kind, &kfull, &mut stiffness);
         UnitElement {
             kind,
             poisson_ratio: nu,

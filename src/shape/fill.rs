@@ -43,17 +43,26 @@ impl SubFill {
     /// The fractions averaged onto `per_axis^3` coarser sub-cells (x fastest); `per_axis` divides
     /// [`SUBCELLS_PER_AXIS`].
     pub fn coarsened(&self, per_axis: usize) -> Vec<f64> {
+        let mut out = vec![0.0; per_axis.clamp(1, SUBCELLS_PER_AXIS).pow(3)];
+        self.coarsened_into(&mut out);
+        out
+    }
+
+    /// [`SubFill::coarsened`] into `out`, whose length (`per_axis^3`) picks the sub-cell count.
+    pub fn coarsened_into(&self, out: &mut [f64]) {
         let n = SUBCELLS_PER_AXIS;
-        let r = n / per_axis.clamp(1, n);
-        let per_axis = n / r;
-        let mut out = vec![0.0; per_axis.pow(3)];
+        let per_axis = (1..=n)
+            .find(|p| p * p * p >= out.len())
+            .expect("at most SUBCELLS sub-cells");
+        assert_eq!(per_axis.pow(3), out.len(), "a cube number of sub-cells");
+        let r = n / per_axis;
+        out.fill(0.0);
         for (i, &f) in self.0.iter().enumerate() {
             let c = [i % n, (i / n) % n, i / (n * n)].map(|c| c / r);
             out[c[0] + per_axis * (c[1] + per_axis * c[2])] += f as f64;
         }
         let norm = (FULL as usize * r * r * r) as f64;
         out.iter_mut().for_each(|f| *f /= norm);
-        out
     }
 
     /// Every sub-cell's fraction in `[0, 1]`.
