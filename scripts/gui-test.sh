@@ -6,9 +6,10 @@
 # It imports a 200x200x100 MagicaVoxel model (previewed, fitted, kept, solved), sculpts a
 # voxel and undoes it with quick Ctrl+Z taps (five times), picks the tools by key, sets a hit
 # point by clicking, resizes the window to the stated minimum (480x360) and checks that every
-# control it names is inside it, then measures the idle window's CPU use (goal: under 2 % of
-# a core; the engine's worker thread is counted apart). Installs xvfb, xdotool and the screenshot tools when missing. Exits non-zero on
-# the first failed check.
+# control it names is inside it, scales the window to 200 % and back from the scale menu,
+# resizes it by dragging its corner, then measures the idle window's CPU use (goal: under 2 %
+# of a core; the engine's worker thread is counted apart). Installs xvfb, xdotool and the
+# screenshot tools when missing. Exits non-zero on the first failed check.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/need.sh
@@ -72,13 +73,16 @@ wait_for() {
     sleep 0.2
   done
 }
-# The centre of a control's rectangle, "x y", window pixels.
+# The centre of a control's rectangle, "x y", window pixels (the dump's rectangles are in
+# points: pixels over the editor's scale).
 centre() {
   local r
   r=$(get "rect.$1")
   [ -n "$r" ] || fail "the dump has no rectangle for $1"
-  awk -F, '{ printf "%d %d", ($1 + $3) / 2, ($2 + $4) / 2 }' <<<"$r"
+  awk -F, -v s="$(get scale)" '{ s = s ? s : 1; printf "%d %d", s * ($1 + $3) / 2, s * ($2 + $4) / 2 }' <<<"$r"
 }
+# The window's width in pixels, as the X server has it.
+width_px() { xdotool getwindowgeometry --shell "$win" | sed -n 's/^WIDTH=//p'; }
 click() { xdotool mousemove --window "$win" $1 click 1; }
 shot() { xwd -id "$win" -silent | xwdtopnm 2>/dev/null | pnmtopng >"$out/$1.png"; }
 # A solve that has settled: requests counted past $1, nothing solving, modes playing.
@@ -152,6 +156,31 @@ xdotool key Escape
 read -r x0 y0 x1 y1 <<<"$(get rect.view | tr , ' ')"
 ((x1 - x0 >= 160 && y1 - y0 >= 100)) || fail "at 480x360 the 3D view is $((x1 - x0))x$((y1 - y0))"
 echo "at 480x360 every named control is inside the window; the view is $((x1 - x0))x$((y1 - y0))"
+xdotool windowsize "$win" 1000 680
+wait_for '[ "$(get window)" = 1000,680 ]' 10
+
+# The scale menu: 200 % doubles the window in pixels and keeps its layout (the same points);
+# then back to 100 %.
+click "$(centre scale)"
+wait_for '[ -n "$(get rect.scale_200)" ]' 10
+click "$(centre scale_200)"
+wait_for '[ "$(get scale)" = 2.00 ] && [ "$(width_px)" = 2000 ]' 10
+wait_for '[ "$(get window)" = 1000,680 ]' 10
+shot scale-200
+click "$(centre scale)"
+wait_for '[ -n "$(get rect.scale_100)" ]' 10
+click "$(centre scale_100)"
+wait_for '[ "$(get scale)" = 1.00 ] && [ "$(width_px)" = 1000 ] && [ "$(get window)" = 1000,680 ]' 10
+echo "scale menu: 200 % made the window 2000 px wide with the same 1000x680-point layout; 100 % restored it"
+# The resize corner (for hosts without a window frame): a drag makes the window smaller.
+# (A pause after each step: egui sees a press, moves and a release in one frame as a click.)
+for step in "mousemove --window $win 995 675" "mousedown 1" "mousemove --window $win 895 625" \
+  "mousemove --window $win 795 575" "mouseup 1"; do
+  xdotool $step
+  sleep 0.3
+done
+wait_for '[ "$(get window)" = 800,580 ]' 10
+echo "resize corner dragged: the window is $(get window)"
 xdotool windowsize "$win" 1000 680
 wait_for '[ "$(get window)" = 1000,680 ]' 10
 

@@ -61,6 +61,19 @@ impl EditorLink {
 /// Default window size, logical pixels.
 pub const WINDOW_SIZE: (f64, f64) = (1000.0, 680.0);
 
+/// `scale` within [`SCALES`]' range (100 % for a value that is not a number).
+fn clamp_scale(scale: f32) -> f32 {
+    if scale.is_finite() {
+        scale.clamp(SCALES[0], SCALES[SCALES.len() - 1])
+    } else {
+        1.0
+    }
+}
+
+/// The scales the editor offers (egui's zoom factor: the whole interface grows, and the
+/// window with it, so the layout in points is the same at every scale).
+pub const SCALES: [f32; 6] = [0.75, 1.0, 1.25, 1.5, 1.75, 2.0];
+
 /// The sculpting tools.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Tool {
@@ -196,9 +209,42 @@ impl EditorApp {
         }
     }
 
+    /// The editor's scale, as saved with the project (clamped to [`SCALES`]' range: a state
+    /// edited by hand cannot make the window vanish or explode).
+    pub fn scale(&self) -> f32 {
+        clamp_scale(
+            *self
+                .params
+                .ui_scale
+                .read()
+                .unwrap_or_else(|e| e.into_inner()),
+        )
+    }
+
+    /// Sets the editor's scale (clamped to [`SCALES`]' range): saved with the project, applied
+    /// to `ctx` (egui-baseview then resizes the window by the same factor).
+    pub fn set_scale(&mut self, ctx: &egui::Context, scale: f32) {
+        let scale = clamp_scale(scale);
+        *self
+            .params
+            .ui_scale
+            .write()
+            .unwrap_or_else(|e| e.into_inner()) = scale;
+        ctx.set_zoom_factor(scale);
+    }
+
+    /// Keeps the saved scale in step with egui's own zoom keys (Ctrl+Plus, Ctrl+Minus,
+    /// Ctrl+0), within [`SCALES`]' range.
+    fn follow_zoom_keys(&mut self, ctx: &egui::Context) {
+        let zoom = ctx.zoom_factor();
+        if (zoom - self.scale()).abs() > 1e-3 {
+            self.set_scale(ctx, zoom);
+        }
+    }
+
     /// The state a scripted window test checks, as `(key, value)` pairs (see [`dump`]):
-    /// the object, the tool, the hit parameters, the message line, the solver and the
-    /// window's size in logical pixels.
+    /// the object, the tool, the hit parameters, the message line, the solver, the window's
+    /// size in points and the scale.
     pub fn dump_state(&self, window_px: [f32; 2]) -> Vec<(&'static str, String)> {
         let (lo, dims) = self.sculptor.bounds().unwrap_or(([0; 3], [0; 3]));
         let s = &self.params.strike;
@@ -235,6 +281,7 @@ impl EditorApp {
             ),
             ("status", self.status_line().0),
             ("window", format!("{:.0},{:.0}", window_px[0], window_px[1])),
+            ("scale", format!("{:.2}", self.scale())),
         ];
         if let Some(st) = status {
             let solving = matches!(st.state, SolveState::Solving { .. });
@@ -890,19 +937,31 @@ pub fn create(
     nice_plug_egui::create_egui_editor(
         state,
         repaint,
-        nice_plug_egui::EguiNiceSettings::new().with_tile("ModalForge"),
+        nice_plug_egui::EguiNiceSettings::new()
+            .with_tile("ModalForge")
+            .with_resize_hint(resize_hint()),
         EditorWindow::new(app),
     )
+}
+
+/// The editor is resizable down to [`layout::MIN_WINDOW_PX`] (in points: at 200 % the
+/// smallest window is twice as large in pixels).
+pub fn resize_hint() -> nice_plug::editor::ResizeHint {
+    let [w, h] = layout::MIN_WINDOW_PX;
+    nice_plug::editor::ResizeHint::RESIZABLE
+        .with_min_logical_size(nice_plug::editor::dpi::LogicalSize::new(w, h))
 }
 
 impl NiceEguiApp for EditorWindow {
     fn build(
         &mut self,
-        _egui_ctx: egui::Context,
+        egui_ctx: egui::Context,
         nice_gui_ctx: GuiContext,
         _frame: &mut nice_plug_egui::Frame,
     ) -> Result<(), nice_plug_egui::baseview::HandlerError> {
         self.gui = Some(nice_gui_ctx);
+        // The project's scale; egui-baseview resizes the window to it on the first frame.
+        egui_ctx.set_zoom_factor(self.app.scale());
         Ok(())
     }
 
@@ -913,6 +972,7 @@ impl NiceEguiApp for EditorWindow {
         let setter = gui.param_setter();
         let app = &mut self.app;
         app.follow_host();
+        app.follow_zoom_keys(ui.ctx());
         app.watch_engine();
         app.poll_match(&setter);
         app.refresh_spectrum();
@@ -920,6 +980,7 @@ impl NiceEguiApp for EditorWindow {
         ui.ctx().request_repaint_after(app.redraw_after());
 
         layout::window(app, ui, &setter);
+        layout::resize_corner(ui);
         if app.dump.is_some() {
             let size = ui.ctx().content_rect().size();
             let state = app.dump_state([size.x, size.y]);

@@ -151,6 +151,10 @@ pub struct ModalForgeParams {
     /// texts.
     #[persist = "tuning"]
     pub tuning: Arc<RwLock<Option<crate::tuning::TuningState>>>,
+    /// The editor's scale (1.0 = 100 %, one of [`crate::editor::SCALES`]), persisted with the
+    /// project; states saved before it existed open at 100 %.
+    #[persist = "ui-scale"]
+    pub ui_scale: Arc<RwLock<f32>>,
     /// Each key's frequency under `tuning`, for the audio thread (not a parameter).
     pub key_table: Arc<crate::tuning::KeyTable>,
     /// Material constants and size.
@@ -339,6 +343,7 @@ impl Default for ModalForgeParams {
             object: Arc::new(RwLock::new(crate::sculpt::Sculpt::default())),
             recording: Arc::new(RwLock::new(None)),
             tuning: Arc::new(RwLock::new(None)),
+            ui_scale: Arc::new(RwLock::new(1.0)),
             key_table: Arc::new(crate::tuning::KeyTable::default()),
             material: MaterialGroup::default(),
             damping: DampingGroup::default(),

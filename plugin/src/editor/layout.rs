@@ -116,7 +116,10 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         }
         ui.separator();
         if compact {
-            let menu = ui.menu_button("File", |ui| file_actions(app, ui, setter));
+            let menu = ui.menu_button("File", |ui| {
+                file_actions(app, ui, setter);
+                scale_menu(app, ui);
+            });
             app.mark("file_menu", menu.response.rect);
         } else {
             ui.label("File");
@@ -160,6 +163,7 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
         }
         if !compact {
             file_actions(app, ui, setter);
+            scale_menu(app, ui);
         }
     });
     // The message has a line of its own, there whether or not a message is showing, so
@@ -171,6 +175,63 @@ pub(super) fn top_bar(app: &mut EditorApp, ui: &mut egui::Ui, setter: &ParamSett
     };
     ui.add(egui::Label::new(egui::RichText::new(text).color(colour)).truncate())
         .on_hover_text(text);
+}
+
+/// The window's scale, 75-200 % ([`super::SCALES`]), saved with the project.
+fn scale_menu(app: &mut EditorApp, ui: &mut egui::Ui) {
+    let current = app.scale();
+    let percent = |s: f32| format!("{:.0} %", s * 100.0);
+    let mut chosen = None;
+    let combo = egui::ComboBox::from_id_salt("scale")
+        .selected_text(percent(current))
+        .width(64.0)
+        .show_ui(ui, |ui| {
+            for (s, name) in super::SCALES.into_iter().zip(SCALE_NAMES) {
+                let item = ui.selectable_label((s - current).abs() < 1e-3, percent(s));
+                app.mark(name, item.rect);
+                if item.clicked() {
+                    chosen = Some(s);
+                }
+            }
+        });
+    app.mark("scale", combo.response.rect);
+    combo
+        .response
+        .on_hover_text("Scale of the whole window (Ctrl+Plus / Ctrl+Minus)");
+    if let Some(s) = chosen {
+        app.set_scale(ui.ctx(), s);
+    }
+}
+
+/// The scale menu's entries as the state dump names them.
+const SCALE_NAMES: [&str; 6] = [
+    "scale_75",
+    "scale_100",
+    "scale_125",
+    "scale_150",
+    "scale_175",
+    "scale_200",
+];
+
+/// A handle in the window's bottom-right corner that resizes it, for hosts that draw no
+/// frame of their own around a plugin window (the host or the window manager resizes it
+/// otherwise; either way the layout follows, down to [`MIN_WINDOW_PX`]).
+pub(super) fn resize_corner(ui: &mut egui::Ui) {
+    let window = ui.ctx().content_rect();
+    let corner = egui::Vec2::splat(ui.visuals().resize_corner_size);
+    let rect = egui::Rect::from_min_size(window.max - corner, corner);
+    let id = egui::Id::unique("modalforge-resize-corner");
+    let response = ui.interact(rect, id, egui::Sense::drag());
+    if response.dragged() {
+        if let Some(delta) = response.total_drag_delta() {
+            let start = ui.data_mut(|d| *d.get_temp_mut_or_insert_with(id, || window.size()));
+            let size = (start + delta).max(MIN_WINDOW_PX.into());
+            ui.send_viewport_cmd(egui::ViewportCommand::InnerSize(size));
+        }
+    } else if response.drag_stopped() {
+        ui.data_mut(|d| d.remove::<egui::Vec2>(id));
+    }
+    nice_plug_egui::resizable_window::paint_resize_corner(ui, &response);
 }
 
 /// Save .vox, the presets, the recordings and the tuning: inline in a wide top bar, or in

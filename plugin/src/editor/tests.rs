@@ -1288,3 +1288,55 @@ fn a_scala_tuning_tunes_every_key_and_is_restored_with_the_project() {
     assert!(params.tuning.read().unwrap().is_none());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_scale_is_clamped_saved_with_the_project_and_applied() {
+    // 75-200 %: a choice from the menu is saved and applied; out-of-range values (egui's
+    // zoom keys step by 10 % without a limit, a state edited by hand) are clamped, NaN is 100 %.
+    // egui applies a zoom at the start of the next frame.
+    let frame = |ctx: &egui::Context| {
+        let _ = ctx.run_ui(egui::RawInput::default(), |_| {});
+    };
+    let mut app = app_with(block([4, 4, 4]));
+    let ctx = egui::Context::default();
+    assert_eq!(app.scale(), 1.0);
+    app.set_scale(&ctx, 1.5);
+    frame(&ctx);
+    assert_eq!((app.scale(), ctx.zoom_factor()), (1.5, 1.5));
+    for (asked, got) in [(5.0, 2.0), (0.1, 0.75), (f32::NAN, 1.0)] {
+        app.set_scale(&ctx, asked);
+        frame(&ctx);
+        assert_eq!((app.scale(), ctx.zoom_factor()), (got, got), "{asked}");
+    }
+    // Ctrl+Minus below the range: the saved scale and the window stop at 75 %.
+    ctx.set_zoom_factor(0.6);
+    frame(&ctx);
+    app.follow_zoom_keys(&ctx);
+    frame(&ctx);
+    assert_eq!((app.scale(), ctx.zoom_factor()), (0.75, 0.75));
+    // Saved with the project; states from before the scale existed open at 100 %.
+    app.set_scale(&ctx, 1.25);
+    let restored = ModalForgeParams::default();
+    restored.deserialize_fields(&app.params.serialize_fields());
+    assert_eq!(*restored.ui_scale.read().unwrap(), 1.25);
+    let mut old = app.params.serialize_fields();
+    old.remove("ui-scale");
+    let restored = ModalForgeParams::default();
+    restored.deserialize_fields(&old);
+    assert_eq!(*restored.ui_scale.read().unwrap(), 1.0);
+}
+
+#[test]
+fn the_window_resizes_down_to_the_layouts_minimum() {
+    use nice_plug::editor::SizeConstraints;
+    let hint = super::resize_hint();
+    assert!(hint.can_resize && hint.can_resize_horizontally && hint.can_resize_vertically);
+    let SizeConstraints::Logical {
+        min_size: Some(min),
+        max_size: None,
+    } = hint.size_constraints
+    else {
+        panic!("{:?}", hint.size_constraints)
+    };
+    assert_eq!([min.width, min.height], super::layout::MIN_WINDOW_PX);
+}
