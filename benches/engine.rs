@@ -6,6 +6,10 @@
 //! `n` keys at once (pitch mapping: one voice per key, spread over an octave), renders two
 //! seconds and prints per-block time, real-time load and ringing modes. One core runs out where
 //! load reaches 1: `modes / load` from the busiest run (the cost is linear in ringing modes).
+//!
+//! Then the resonator effect ([`modalforge::engine::resonator`]): a 500-mode object (a
+//! made-up recording, so no solve) driven by full-scale noise, per-block time of
+//! `AudioEngine::resonate` on top of an idle `process`.
 
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
@@ -78,4 +82,73 @@ fn main() {
         );
     }
     println!("one core runs out at about {capacity:.0} ringing modes (64-sample blocks, 48 kHz)");
+    resonator(voicing);
+}
+
+/// The resonator effect on 500 modes: microseconds per 64-sample block and load.
+fn resonator(voicing: Voicing) {
+    use modalforge::engine::recorded::RecordedObject;
+    use modalforge::engine::resonator::ResonatorSettings;
+    use modalforge::modes::ModeRecord;
+    let records: Vec<ModeRecord> = (0..500)
+        .map(|i| {
+            let t = i as f64 / 499.0;
+            ModeRecord {
+                freq_hz: 60.0 * 300f64.powf(t),
+                decay_per_s: 0.5 + 40.0 * ((i * 7919) % 101) as f64 / 100.0,
+                gain: 1.0 - 0.8 * t,
+            }
+        })
+        .collect();
+    let (mut audio, control) = Engine::start(
+        RATE_HZ,
+        EngineConfig::default(),
+        voicing,
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    let recording = RecordedObject::new("bench", &records, &voicing).unwrap();
+    control.request(ObjectRequest {
+        grid: VoxelGrid::from_fn([4, 1, 1], 0.01, |_, _, _| true).unwrap(),
+        element: ElementKind::Hex8Incompatible,
+        poisson_ratio: 0.3,
+        solver: SolverKind::Auto,
+        options: EigenOptions::default(),
+        recording: Some(std::sync::Arc::new(recording)),
+    });
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let settings = ResonatorSettings {
+        input_gain: 1.0,
+        ..ResonatorSettings::default()
+    };
+    let mut out = vec![0f32; BLOCK];
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut noise = vec![0f32; BLOCK];
+    let mut fill = |noise: &mut [f32]| {
+        for x in noise.iter_mut() {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *x = (state >> 40) as f32 / (1u64 << 23) as f32 - 1.0;
+        }
+    };
+    fill(&mut noise);
+    audio.process(&mut out, &[]);
+    audio.resonate(&noise, &mut out, &settings);
+    let modes = audio.resonator().modes();
+    let blocks = (4.0 * RATE_HZ) as usize / BLOCK;
+    let mut busy = Duration::ZERO;
+    for _ in 0..blocks {
+        fill(&mut noise);
+        let t = Instant::now();
+        audio.process(&mut out, &[]);
+        audio.resonate(&noise, &mut out, &settings);
+        busy += t.elapsed();
+    }
+    let per_block = busy.as_secs_f64() / blocks as f64;
+    let load = per_block / (BLOCK as f64 / RATE_HZ);
+    println!(
+        "resonator effect, {modes} modes, full-scale noise in: {:.1} us/block, load {load:.3}",
+        per_block * 1e6
+    );
 }

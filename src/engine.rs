@@ -23,6 +23,7 @@ mod audio;
 mod object;
 pub mod pitch;
 pub mod recorded;
+pub mod resonator;
 mod solvers;
 pub mod spectrum;
 mod voice;

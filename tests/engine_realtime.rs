@@ -6,6 +6,7 @@ mod common;
 
 use common::alloc::{self, Counting};
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::engine::resonator::ResonatorSettings;
 use modalforge::engine::{
     DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, Pitch,
     TimedEvent, Voicing,
@@ -46,6 +47,16 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
     control.request(request(12));
     // Preparation may allocate; from here on the test thread is the audio thread.
     let mut out = vec![0f32; 512];
+    // The resonator effect's input (issue 15): a loud sawtooth with NaNs in it.
+    let input: Vec<f32> = (0..512)
+        .map(|i| {
+            if i % 97 == 0 {
+                f32::NAN
+            } else {
+                (i % 50) as f32 / 25.0 - 1.0
+            }
+        })
+        .collect();
     let mut events = Vec::with_capacity(8);
     let started = Instant::now();
     let mut edits = 0;
@@ -103,6 +114,14 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
             audio.set_voicing(v).unwrap();
             audio.set_mode_budget(40 + (block % 50) as usize);
             audio.process(&mut out[..len], &events);
+            // The voicing changes every block, so the resonator retunes every block too.
+            let settings = ResonatorSettings {
+                input_gain: 1.0,
+                mix: (block % 3) as f32 / 2.0,
+                low_cut_hz: 20.0 + (block % 5) as f64 * 50.0,
+                high_cut_hz: 18_000.0,
+            };
+            audio.resonate(&input[..len], &mut out[..len], &settings);
         });
 
         assert!(out[..len].iter().all(|x| x.is_finite()));

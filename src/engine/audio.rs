@@ -22,6 +22,7 @@
 //! peak are dropped as they decay, and a voice with no mode left is freed.
 
 use super::object::SolvedObject;
+use super::resonator::{InputResonator, ResonatorSettings};
 use super::voice::{SlotMode, Voice};
 use super::voicing::{tune, HitPoint, Voicing, VoicingError};
 use super::{
@@ -68,6 +69,10 @@ pub struct AudioEngine {
     gain_now: f64,
     /// Level normalisation factor (1 when off).
     level_scale: f64,
+    /// The resonator effect ([`AudioEngine::resonate`]) and the size ratio it plays at: the
+    /// last key struck's.
+    resonator: InputResonator,
+    last_pitch: f64,
     blocks: u32,
     stats: Arc<EngineStats>,
     #[cfg(test)]
@@ -100,6 +105,8 @@ impl AudioEngine {
             render: vec![0.0; super::BLOCK_SAMPLES],
             gain_now: voicing.output_gain,
             level_scale: 1.0,
+            resonator: InputResonator::new(sample_rate_hz, backend),
+            last_pitch: 1.0,
             blocks: 0,
             #[cfg(test)]
             budget_split: (0.0, 0.0),
@@ -217,6 +224,30 @@ impl AudioEngine {
             }
         }
         self.finish_block(out, started);
+    }
+
+    /// The resonator effect: adds `input` (mono, e.g. a side-chain) driving the object's modes
+    /// to `out`, at the voicing's material, damping and hit point and the pitch of the last key
+    /// struck ([`super::resonator`]). Call after [`AudioEngine::process`] on the same block.
+    /// Never allocates, locks or blocks.
+    pub fn resonate(&mut self, input: &[f32], out: &mut [f32], settings: &ResonatorSettings) {
+        if let Some(obj) = self.object.as_mut() {
+            if obj.update_forces(&self.voicing.hit).is_ok() {
+                self.resonator.retune(obj, &self.voicing, self.last_pitch);
+            }
+        }
+        let gain = self.voicing.output_gain as f32;
+        self.resonator.process(input, out, settings, gain);
+        for x in out.iter_mut() {
+            if x.abs() < f32::MIN_POSITIVE {
+                *x = 0.0;
+            }
+        }
+    }
+
+    /// The resonator effect's bank (what it plays, for tests and the editor).
+    pub fn resonator(&self) -> &InputResonator {
+        &self.resonator
     }
 
     /// Takes newly solved objects while the retire ring has room for the one each replaces;
@@ -366,6 +397,7 @@ impl AudioEngine {
             self.stats.dropped_strikes.fetch_add(1, Ordering::Relaxed);
             return;
         };
+        self.last_pitch = pitch;
         let voice = &mut self.voices[v];
         if voice.key != Some(key) {
             voice.release();

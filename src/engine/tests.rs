@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicU64;
 use std::time::Duration;
 
 mod expression;
+mod resonator;
 
 const FS: f64 = 48000.0;
 

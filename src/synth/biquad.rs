@@ -79,6 +79,22 @@ pub enum BiquadError {
         /// Stages per branch.
         stages: usize,
     },
+    /// More resonators than [`BiquadBank::with_capacity`] made room for.
+    #[error(
+        "{sections} resonators do not fit a bank built for {capacity}; build it with room for more"
+    )]
+    Capacity {
+        /// Sections given.
+        sections: usize,
+        /// The bank's room.
+        capacity: usize,
+    },
+    /// A section given to [`BiquadBank::retune_modal`] that is not a modal resonator.
+    #[error("biquad {index} is not a modal resonator (b0 and b2 must be 0)")]
+    NotModal {
+        /// Which section.
+        index: usize,
+    },
 }
 
 impl BiquadCoeffs {
@@ -212,6 +228,79 @@ impl BiquadBank {
             bank.na2[o] = -c.a2;
         }
         Ok(bank)
+    }
+
+    /// A silent bank of one-section branches with room for `capacity` modal resonators, to be
+    /// (re)tuned in place by [`BiquadBank::retune_modal`] (the resonator effect,
+    /// [`crate::engine::resonator`]). Allocates.
+    pub fn with_capacity(capacity: usize, backend: SimdBackend) -> Self {
+        let backend = if backend.is_available() {
+            backend
+        } else {
+            SimdBackend::Portable
+        };
+        let room = padded_len(capacity.max(1));
+        Self {
+            backend,
+            branches: 0,
+            stages: 1,
+            padded: padded_len(1),
+            modal: true,
+            b0: vec![0.0; room],
+            b1: vec![0.0; room],
+            b2: vec![0.0; room],
+            na1: vec![0.0; room],
+            na2: vec![0.0; room],
+            s1: vec![0.0; room],
+            s2: vec![0.0; room],
+            x: vec![0.0; CHUNK_SAMPLES],
+            scratch: vec![0.0; (kernel_group() + 1) * 4 * CHUNK_SAMPLES],
+        }
+    }
+
+    /// Whether every filter state is zero (nothing rings: silence in gives silence out).
+    pub fn is_silent(&self) -> bool {
+        self.s1.iter().chain(&self.s2).all(|&s| s == 0.0)
+    }
+
+    /// Replaces the sections of a one-stage bank by `sections` (modal resonators: `b0 = b2 =
+    /// 0`), at most as many as its capacity. Branches that stay keep their filter state, so a
+    /// retune of a driven bank glides instead of restarting; the others are cleared. Never
+    /// allocates. A section that is not finite or not stable, too many sections, or a bank with
+    /// several stages is refused and leaves the bank unchanged.
+    pub fn retune_modal(&mut self, sections: &[BiquadCoeffs]) -> Result<(), BiquadError> {
+        let room = self.b1.len();
+        if self.stages != 1 || sections.len() > room {
+            return Err(BiquadError::Capacity {
+                sections: sections.len(),
+                capacity: if self.stages == 1 { room } else { 0 },
+            });
+        }
+        for (i, c) in sections.iter().enumerate() {
+            c.check(i)?;
+            if c.b0 != 0.0 || c.b2 != 0.0 {
+                return Err(BiquadError::NotModal { index: i });
+            }
+        }
+        for (i, c) in sections.iter().enumerate() {
+            self.b1[i] = c.b1;
+            self.na1[i] = -c.a1;
+            self.na2[i] = -c.a2;
+        }
+        let n = sections.len();
+        for v in [
+            &mut self.b1,
+            &mut self.na1,
+            &mut self.na2,
+            &mut self.s1,
+            &mut self.s2,
+        ] {
+            v[n..].fill(0.0);
+        }
+        self.branches = n;
+        self.padded = padded_len(n.max(1));
+        self.modal = true;
+        Ok(())
     }
 
     /// One modal resonator per mode (one stage per branch) on the fastest backend.
