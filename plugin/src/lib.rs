@@ -60,6 +60,8 @@ pub struct ModalForge {
     keymap: KeyMap,
     events: Vec<TimedEvent>,
     mono: Vec<f32>,
+    /// The side-chain input mixed to mono, for the resonator effect (sized with `mono`).
+    side: Vec<f32>,
     link: Arc<EditorLink>,
     editor_state: Arc<EguiEditorState>,
     /// The neural predictor (the shipped weights); `None` when they cannot be loaded, and FEM
@@ -79,6 +81,7 @@ impl Default for ModalForge {
             keymap: KeyMap::default(),
             events: Vec::with_capacity(MAX_EVENTS),
             mono: Vec::new(),
+            side: Vec::new(),
             link: Arc::new(EditorLink::default()),
             editor_state: EguiEditorState::from_size(
                 nice_plug::editor::dpi::LogicalSize::new(
@@ -196,9 +199,16 @@ impl Plugin for ModalForge {
     const EMAIL: &'static str = "modalforge@example.invalid";
     const VERSION: &'static str = env!("CARGO_PKG_VERSION");
 
+    /// Stereo out, and a stereo side-chain input that the resonator effect plays through the
+    /// object (hosts that connect nothing there feed silence, which costs nothing).
     const AUDIO_IO_LAYOUTS: &'static [AudioIOLayout] = &[AudioIOLayout {
         main_input_channels: None,
         main_output_channels: NonZeroU32::new(2),
+        aux_input_ports: &[new_nonzero_u32(2)],
+        names: PortNames {
+            aux_inputs: &["Resonator input"],
+            ..PortNames::const_default()
+        },
         ..AudioIOLayout::const_default()
     }];
 
@@ -234,6 +244,7 @@ impl Plugin for ModalForge {
             .sample_rate_bits
             .store(rate.to_bits(), Ordering::Relaxed);
         self.mono = vec![0.0; config.max_buffer_size as usize];
+        self.side = vec![0.0; config.max_buffer_size as usize];
         if self
             .engine
             .as_ref()
@@ -282,7 +293,7 @@ impl Plugin for ModalForge {
     fn process(
         &mut self,
         buffer: &mut Buffer,
-        _aux: &mut AuxiliaryBuffers,
+        aux: &mut AuxiliaryBuffers,
         context: &mut impl ProcessContext<Self>,
     ) -> ProcessStatus {
         let n = buffer.samples();
@@ -318,6 +329,19 @@ impl Plugin for ModalForge {
         let n = n.min(self.mono.len());
         let mono = &mut self.mono[..n];
         engine.process(mono, &self.events);
+        // The resonator effect: the side-chain, mixed to mono, through the object.
+        let side = &mut self.side[..n];
+        side.fill(0.0);
+        if let Some(input) = aux.inputs.first_mut() {
+            let channels = input.as_slice();
+            let scale = 1.0 / channels.len().max(1) as f32;
+            for ch in channels.iter() {
+                for (s, x) in side.iter_mut().zip(ch.iter()) {
+                    *s += scale * x;
+                }
+            }
+        }
+        engine.resonate(side, mono, &self.params.resonator.settings());
         for ch in buffer.as_slice() {
             let len = ch.len().min(n);
             ch[..len].copy_from_slice(&mono[..len]);

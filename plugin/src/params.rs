@@ -10,6 +10,9 @@ use modalforge::engine::{DampingParams, HitPoint, Voicing};
 use nice_plug::prelude::*;
 use std::sync::{Arc, RwLock};
 
+mod resonator;
+pub use resonator::ResonatorGroup;
+
 /// How MIDI keys strike the object.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum KeyMapping {
@@ -134,7 +137,7 @@ fn skewed(min: f32, max: f32) -> FloatRange {
     }
 }
 
-/// Every parameter, plus the persisted object. Hosts see the parameters in six groups
+/// Every parameter, plus the persisted object. Hosts see the parameters in seven groups
 /// (nice-plug's `#[nested(group = ...)]`, which keeps each parameter's id unchanged, so
 /// projects saved before the groups existed still load).
 #[derive(Params)]
@@ -175,6 +178,9 @@ pub struct ModalForgeParams {
     /// Per-note expression: MPE and its mapping.
     #[nested(group = "Expression")]
     pub expression: ExpressionGroup,
+    /// The side-chain input played through the object.
+    #[nested(group = "Resonator")]
+    pub resonator: ResonatorGroup,
 }
 
 /// The "Expression" group.
@@ -351,6 +357,7 @@ impl Default for ModalForgeParams {
             play: PlayGroup::default(),
             solver: SolverGroup::default(),
             expression: ExpressionGroup::default(),
+            resonator: ResonatorGroup::default(),
         }
     }
 }

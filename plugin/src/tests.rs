@@ -119,7 +119,7 @@ fn the_solve_source_asks_once_per_change() {
 }
 
 #[test]
-fn parameter_ids_are_frozen_and_hosts_see_six_groups() {
+fn parameter_ids_are_frozen_and_hosts_see_seven_groups() {
     // The ids and order as shipped before the groups existed: a project saved then stores
     // its values under these ids, so they must never change (the groups only add a path).
     const FROZEN: [(&str, &str); 27] = [
@@ -152,10 +152,14 @@ fn parameter_ids_are_frozen_and_hosts_see_six_groups() {
         ("modes", "Solver"),
     ];
     // Added later, after every frozen one.
-    const ADDED: [(&str, &str); 3] = [
+    const ADDED: [(&str, &str); 7] = [
         ("expr", "Expression"),
         ("bendr", "Expression"),
         ("pdec", "Expression"),
+        ("rin", "Resonator"),
+        ("rmix", "Resonator"),
+        ("rlow", "Resonator"),
+        ("rhigh", "Resonator"),
     ];
     let params = ModalForgeParams::default();
     let map: Vec<(String, String)> = params

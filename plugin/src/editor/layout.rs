@@ -802,6 +802,16 @@ pub(super) fn controls(
     }
     slider(ui, "Pressure", &p.pressure_decay, setter);
     ui.separator();
+    let p = &params.resonator;
+    ui.heading("Resonator").on_hover_text(
+        "Audio on the side-chain input played through the object (as a force at the hit \
+         point, at the pitch of the last key struck)",
+    );
+    slider(ui, "Input", &p.input_gain_db, setter);
+    slider(ui, "Mix", &p.mix, setter);
+    slider(ui, "Low cut", &p.low_cut_hz, setter);
+    slider(ui, "High cut", &p.high_cut_hz, setter);
+    ui.separator();
     let p = &params.solver;
     ui.heading("Solver");
     enum_combo(ui, "Solver", &p.kind, setter);
