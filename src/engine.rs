@@ -126,6 +126,22 @@ pub enum Event {
         /// What changes.
         expression: Expression,
     },
+    /// Start a continuous contact on the key: a held note scraping the object, noise pushed
+    /// through the resonator bank ([`resonator`]) at `pitch` until [`Event::ContactEnd`] on
+    /// the key; the key's [`Expression::Pressure`] presses harder and scrapes faster.
+    Contact {
+        /// The key.
+        key: u8,
+        /// How high the object sounds (as for a strike).
+        pitch: Pitch,
+        /// Force, `0..=1` (a MIDI velocity over 127).
+        velocity: f64,
+    },
+    /// End the key's contact (note-off of a scraping key).
+    ContactEnd {
+        /// The key.
+        key: u8,
+    },
     /// Silence everything.
     AllOff,
 }

@@ -101,6 +101,24 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
                 event: Event::Mute { key },
             });
         }
+        // A held key scraping the object now and then (the resonator's contact noise).
+        if block % 13 == 1 {
+            events.push(TimedEvent {
+                offset: 0,
+                event: Event::Contact {
+                    key: 99,
+                    pitch: Pitch::Ratio(1.2),
+                    velocity: 0.7,
+                },
+            });
+        }
+        if block % 13 == 9 {
+            events.push(TimedEvent {
+                offset: 30,
+                event: Event::ContactEnd { key: 99 },
+            });
+        }
+        events.sort_by_key(|e| e.offset);
         let len = [64, 128, 37, 512][(block % 4) as usize];
         let mut v = voicing;
         v.size_m = 0.2 + 0.01 * (block % 9) as f64;

@@ -22,7 +22,7 @@
 //! peak are dropped as they decay, and a voice with no mode left is freed.
 
 use super::object::SolvedObject;
-use super::resonator::{InputResonator, ResonatorSettings};
+use super::resonator::{ContactForce, InputResonator, ResonatorSettings};
 use super::voice::{SlotMode, Voice};
 use super::voicing::{tune, HitPoint, Voicing, VoicingError};
 use super::{
@@ -73,6 +73,8 @@ pub struct AudioEngine {
     /// last key struck's.
     resonator: InputResonator,
     last_pitch: f64,
+    /// The held key scraping the object, its velocity and pressure ([`Event::Contact`]).
+    contact: Option<(u8, f64, f64)>,
     blocks: u32,
     stats: Arc<EngineStats>,
     #[cfg(test)]
@@ -107,6 +109,7 @@ impl AudioEngine {
             level_scale: 1.0,
             resonator: InputResonator::new(sample_rate_hz, backend),
             last_pitch: 1.0,
+            contact: None,
             blocks: 0,
             #[cfg(test)]
             budget_split: (0.0, 0.0),
@@ -237,7 +240,10 @@ impl AudioEngine {
             }
         }
         let gain = self.voicing.output_gain as f32;
-        self.resonator.process(input, out, settings, gain);
+        let contact = self
+            .contact
+            .map(|(_, velocity, pressure)| ContactForce::scrape(velocity, pressure));
+        self.resonator.process(input, out, settings, gain, contact);
         for x in out.iter_mut() {
             if x.abs() < f32::MIN_POSITIVE {
                 *x = 0.0;
@@ -328,13 +334,51 @@ impl AudioEngine {
                 }
             }
             Event::Expression { key, expression } => self.express(key, expression),
-            Event::AllOff => self.reset(),
+            Event::Contact {
+                key,
+                pitch,
+                velocity,
+            } => {
+                let ratio = match pitch {
+                    Pitch::Ratio(r) => Some(r),
+                    Pitch::Fundamental(f) => {
+                        let hit = self.voicing.hit;
+                        if let Some(o) = self.object.as_mut() {
+                            let _ = o.update_forces(&hit);
+                        }
+                        self.fundamental_hz().map(|f0| f / f0)
+                    }
+                };
+                match ratio {
+                    Some(r) if r.is_finite() && r > 0.0 && velocity.is_finite() => {
+                        self.last_pitch = r;
+                        self.contact = Some((key, velocity.clamp(0.0, 1.0), 0.0));
+                    }
+                    _ => {
+                        self.stats.dropped_strikes.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+            Event::ContactEnd { key } => {
+                if self.contact.is_some_and(|(k, _, _)| k == key) {
+                    self.contact = None;
+                }
+            }
+            Event::AllOff => {
+                self.contact = None;
+                self.reset();
+            }
         }
     }
 
     /// A per-note expression on `key`'s sounding voice (not one fading out after a steal).
     /// Out-of-range values are clamped; a NaN is ignored.
     fn express(&mut self, key: u8, expression: Expression) {
+        if let (Some((k, _, pressure)), Expression::Pressure(p)) = (&mut self.contact, expression) {
+            if *k == key && p.is_finite() {
+                *pressure = p.clamp(0.0, 1.0);
+            }
+        }
         let voicing = self.voicing;
         let sounding = |v: &&mut Voice| v.key == Some(key) && v.fade_left == 0;
         for v in self.voices.iter_mut().filter(sounding) {

@@ -67,6 +67,40 @@ impl Default for ResonatorSettings {
     }
 }
 
+/// A held note scraping the object: band-limited noise pushed through the bank (the CLI's
+/// `--scrape`, played from a key). Louder with velocity and pressure; pressure also scrapes
+/// faster (brighter noise).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactForce {
+    /// Noise level at the bank's input (before the output gain).
+    pub level: f32,
+    /// Corner of the noise's one-pole low-pass, Hz.
+    pub cutoff_hz: f64,
+}
+
+/// Noise level of a velocity-1 scrape: the bank passes a narrow band around each mode, so
+/// broadband noise needs this gain to sound about as loud as a velocity-1 strike of a
+/// normalised object (at rest: -4.5 dB on the engine tests' steel bar, -0.4 dB on the
+/// default bowl, against the RMS of the strike's first half second).
+pub const CONTACT_LEVEL: f32 = 24.0;
+
+impl ContactForce {
+    /// The contact of a key held at `velocity` (`0..=1`) under `pressure` (`0..=1`): level
+    /// `CONTACT_LEVEL * velocity * (0.5 + pressure)`, noise corner 1 kHz at rest up to 8 kHz
+    /// at full pressure.
+    pub fn scrape(velocity: f64, pressure: f64) -> Self {
+        let (v, p) = (velocity.clamp(0.0, 1.0), pressure.clamp(0.0, 1.0));
+        Self {
+            level: CONTACT_LEVEL * (v * (0.5 + p)) as f32,
+            cutoff_hz: 1000.0 * 8f64.powf(p),
+        }
+    }
+}
+
+/// Samples over which a contact's level glides to a new value (5 ms at 48 kHz): a key pressed
+/// or released, or its pressure moving, never clicks.
+const CONTACT_GLIDE_SAMPLES: f32 = 240.0;
+
 /// What the bank was last tuned for.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct TunedFor {
@@ -86,13 +120,19 @@ pub struct InputResonator {
     /// Candidate modes of a retune: (frequency, decay, gain), capacity as `sections`.
     candidates: Vec<(f64, f64, f64)>,
     tuned_for: Option<TunedFor>,
-    /// The pre-filtered, scaled input of one chunk, and the bank's output.
+    /// The bank's input of one chunk (the pre-filtered, scaled input plus any contact noise),
+    /// the dry share (the input alone), and the bank's output.
     input: Vec<f32>,
+    dry: Vec<f32>,
     wet: Vec<f32>,
     /// One-pole filter states: the low cut's last input and output, the high cut's output.
     low_cut_x: f32,
     low_cut_y: f32,
     high_cut_y: f32,
+    /// The contact noise: its generator, low-pass state and current (gliding) level.
+    noise: crate::rng::SplitMix64,
+    noise_y: f32,
+    contact_level: f32,
 }
 
 impl InputResonator {
@@ -106,10 +146,14 @@ impl InputResonator {
             candidates: Vec::with_capacity(RESONATOR_MODES),
             tuned_for: None,
             input: vec![0.0; super::BLOCK_SAMPLES],
+            dry: vec![0.0; super::BLOCK_SAMPLES],
             wet: vec![0.0; super::BLOCK_SAMPLES],
             low_cut_x: 0.0,
             low_cut_y: 0.0,
             high_cut_y: 0.0,
+            noise: crate::rng::SplitMix64::new(0x5C2A_9E00),
+            noise_y: 0.0,
+            contact_level: 0.0,
         }
     }
 
@@ -197,13 +241,15 @@ impl InputResonator {
     }
 
     /// Adds the resonated `input` (and the dry share) to `out`, scaled by `output_gain`; `input`
-    /// shorter than `out` is padded with silence. Never allocates.
+    /// shorter than `out` is padded with silence. A `contact` adds its noise to the bank's
+    /// input (not to the dry share). Never allocates.
     pub fn process(
         &mut self,
         input: &[f32],
         out: &mut [f32],
         settings: &ResonatorSettings,
         output_gain: f32,
+        contact: Option<ContactForce>,
     ) {
         let fs = self.sample_rate_hz as f32;
         let nyquist = 0.49 * fs;
@@ -227,13 +273,25 @@ impl InputResonator {
         } else {
             0.0
         };
+        let (contact_target, noise_a) = match contact {
+            Some(c) if c.level.is_finite() && c.cutoff_hz.is_finite() => {
+                let corner = (c.cutoff_hz as f32).clamp(1.0, nyquist);
+                (
+                    c.level.clamp(0.0, 4.0 * CONTACT_LEVEL),
+                    1.0 - (-std::f32::consts::TAU * corner / fs).exp(),
+                )
+            }
+            _ => (0.0, 1.0),
+        };
         for (c, chunk) in out.chunks_mut(super::BLOCK_SAMPLES).enumerate() {
             let n = chunk.len();
             let start = (c * super::BLOCK_SAMPLES).min(input.len());
             let src = &input[start..(start + n).min(input.len())];
             let x = &mut self.input[..n];
+            let dry = &mut self.dry[..n];
             x.fill(0.0);
-            for (xi, &s) in x.iter_mut().zip(src) {
+            for (i, xi) in x.iter_mut().enumerate() {
+                let s = src.get(i).copied().unwrap_or(0.0);
                 let s = if s.is_finite() {
                     s.clamp(-MAX_INPUT, MAX_INPUT)
                 } else {
@@ -243,9 +301,20 @@ impl InputResonator {
                 self.low_cut_y = low_pole * (self.low_cut_y + s - self.low_cut_x);
                 self.low_cut_x = s;
                 self.high_cut_y += high_a * (self.low_cut_y - self.high_cut_y);
-                *xi = gain * self.high_cut_y;
+                dry[i] = gain * self.high_cut_y;
+                *xi = dry[i];
+                if contact_target > 0.0 || self.contact_level > 0.0 {
+                    self.contact_level +=
+                        (contact_target - self.contact_level) / CONTACT_GLIDE_SAMPLES;
+                    if contact_target == 0.0 && self.contact_level < 1e-6 {
+                        self.contact_level = 0.0;
+                    }
+                    let white = self.noise.range(-1.0, 1.0) as f32;
+                    self.noise_y += noise_a * (white - self.noise_y);
+                    *xi += self.contact_level * self.noise_y;
+                }
             }
-            for v in [&mut self.low_cut_y, &mut self.high_cut_y] {
+            for v in [&mut self.low_cut_y, &mut self.high_cut_y, &mut self.noise_y] {
                 if v.abs() < 1e-20 {
                     *v = 0.0;
                 }
@@ -257,7 +326,7 @@ impl InputResonator {
             } else {
                 self.bank.process(x, wet);
             }
-            for ((o, w), d) in chunk.iter_mut().zip(wet.iter()).zip(x.iter()) {
+            for ((o, w), d) in chunk.iter_mut().zip(wet.iter()).zip(dry.iter()) {
                 let w = w.clamp(-MAX_WET, MAX_WET);
                 *o += output_gain * (mix * w + (1.0 - mix) * d);
             }
