@@ -16,7 +16,7 @@
 //! Where it sits: called by [`crate::ModalForge::process`] for every host event; never
 //! allocates (events go into a vector with fixed capacity).
 
-use crate::params::{KeyMapping, MidiExpression, ModalForgeParams};
+use crate::params::{HeldNote, KeyMapping, MidiExpression, ModalForgeParams};
 use modalforge::engine::{AudioEngine, Event, Expression, HitPoint, Pitch, TimedEvent};
 use nice_plug::midi::{Channel, Key};
 use nice_plug::prelude::*;
@@ -168,6 +168,23 @@ impl KeyMap {
                 else {
                     return;
                 };
+                let strike = match (params.resonator.held.value(), strike) {
+                    // A held key scrapes: the same key and pitch, as a contact.
+                    (
+                        HeldNote::Scrape,
+                        Event::Strike {
+                            key,
+                            pitch,
+                            velocity,
+                            ..
+                        },
+                    ) => Event::Contact {
+                        key,
+                        pitch,
+                        velocity: velocity.clamp(0.0, 1.0),
+                    },
+                    (_, strike) => strike,
+                };
                 emit(out, cap, offset, strike);
                 if let Some(c) = member(channel) {
                     // The channel's controllers, set before the note, apply from its strike.
@@ -183,6 +200,12 @@ impl KeyMap {
                         emit(out, cap, offset, Event::Expression { key, expression });
                     }
                 }
+            }
+            NoteEvent::NoteOff {
+                key: Key::Number(k),
+                ..
+            } if params.resonator.held.value() == HeldNote::Scrape => {
+                emit(out, cap, offset, Event::ContactEnd { key: engine_key(k) });
             }
             NoteEvent::NoteOff { key, .. } if params.play.note_off_mute.value() => {
                 let event = match key {

@@ -11,7 +11,7 @@ use nice_plug::prelude::*;
 use std::sync::{Arc, RwLock};
 
 mod resonator;
-pub use resonator::ResonatorGroup;
+pub use resonator::{HeldNote, ResonatorGroup};
 
 /// How MIDI keys strike the object.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]

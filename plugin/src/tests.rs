@@ -152,7 +152,7 @@ fn parameter_ids_are_frozen_and_hosts_see_seven_groups() {
         ("modes", "Solver"),
     ];
     // Added later, after every frozen one.
-    const ADDED: [(&str, &str); 7] = [
+    const ADDED: [(&str, &str); 8] = [
         ("expr", "Expression"),
         ("bendr", "Expression"),
         ("pdec", "Expression"),
@@ -160,6 +160,7 @@ fn parameter_ids_are_frozen_and_hosts_see_seven_groups() {
         ("rmix", "Resonator"),
         ("rlow", "Resonator"),
         ("rhigh", "Resonator"),
+        ("held", "Resonator"),
     ];
     let params = ModalForgeParams::default();
     let map: Vec<(String, String)> = params

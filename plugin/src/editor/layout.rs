@@ -807,6 +807,7 @@ pub(super) fn controls(
         "Audio on the side-chain input played through the object (as a force at the hit \
          point, at the pitch of the last key struck)",
     );
+    enum_combo(ui, "Held notes", &p.held, setter);
     slider(ui, "Input", &p.input_gain_db, setter);
     slider(ui, "Mix", &p.mix, setter);
     slider(ui, "Low cut", &p.low_cut_hz, setter);

@@ -8,7 +8,21 @@ use nice_plug::prelude::*;
 /// Input gains at or below this (dB) switch the effect off.
 pub const OFF_DB: f32 = -60.0;
 
-/// The "Resonator" group: frozen ids `rin`, `rmix`, `rlow`, `rhigh`.
+/// What a held key does.
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HeldNote {
+    /// A key strikes the object once (note-off mutes it if Note-off Mute is on).
+    #[id = "strike"]
+    #[name = "Strike"]
+    Strike,
+    /// A key scrapes the object while held: noise through its modes, louder with velocity,
+    /// louder and brighter with pressure, until note-off.
+    #[id = "scrape"]
+    #[name = "Scrape"]
+    Scrape,
+}
+
+/// The "Resonator" group: frozen ids `rin`, `rmix`, `rlow`, `rhigh`, `held`.
 #[derive(Params)]
 pub struct ResonatorGroup {
     /// Gain on the side-chain input before the object, dB (at the bottom: off).
@@ -24,6 +38,9 @@ pub struct ResonatorGroup {
     /// High cut on the input, Hz.
     #[id = "rhigh"]
     pub high_cut_hz: FloatParam,
+    /// Whether a key strikes or scrapes the object.
+    #[id = "held"]
+    pub held: EnumParam<HeldNote>,
 }
 
 impl Default for ResonatorGroup {
@@ -54,6 +71,7 @@ impl Default for ResonatorGroup {
                 " Hz",
                 0,
             ),
+            held: EnumParam::new("Held Notes", HeldNote::Strike),
         }
     }
 }

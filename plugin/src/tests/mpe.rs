@@ -222,3 +222,63 @@ fn classic_mode_keeps_bend_on_damping_and_note_expressions_always_apply() {
     let bright = hardness(&run(&mut keymap, &params, &engine, on(0, 62)));
     assert!((bright / plain - 0.25).abs() < 1e-12);
 }
+
+#[test]
+fn held_notes_scrape_from_note_on_to_note_off_when_asked() {
+    // "Held Notes: Scrape": a note-on becomes a contact on the same key at the same pitch
+    // (the key's 12-TET frequency) with the MIDI velocity, its note-off ends it, and its
+    // poly pressure reaches it as the key's pressure; "Strike" (the default) strikes.
+    let params = ModalForgeParams::default();
+    let engine = engine_for(&params);
+    let mut keymap = KeyMap::default();
+    let struck = run(&mut keymap, &params, &engine, on(0, 69));
+    assert!(matches!(struck[0].event, Event::Strike { key: 69, .. }));
+    // SAFETY: nothing else reads these parameters while the test sets them.
+    unsafe {
+        params
+            .resonator
+            .held
+            .as_ptr()
+            ._internal_set_normalized_value(1.0);
+    }
+    assert_eq!(
+        params.resonator.held.value(),
+        crate::params::HeldNote::Scrape
+    );
+    let held = run(&mut keymap, &params, &engine, on(0, 69));
+    match held[0].event {
+        Event::Contact {
+            key: 69,
+            pitch: modalforge::engine::Pitch::Fundamental(hz),
+            velocity,
+        } => {
+            assert!((hz - 440.0).abs() < 1e-9, "{hz}");
+            assert!((velocity - 0.8).abs() < 1e-6, "{velocity}");
+        }
+        ref other => panic!("{other:?}"),
+    }
+    let pressed = NoteEvent::PolyPressure {
+        timing: 3,
+        voice_id: VoiceID::Wildcard,
+        channel: Channel::Number(0),
+        key: Key::Number(69),
+        pressure: 0.5,
+    };
+    let pressure = run(&mut keymap, &params, &engine, pressed);
+    assert!(matches!(
+        pressure[0].event,
+        Event::Expression {
+            key: 69,
+            expression: Expression::Pressure(p)
+        } if (p - 0.5).abs() < 1e-6
+    ));
+    let off = NoteEvent::NoteOff {
+        timing: 7,
+        voice_id: VoiceID::Wildcard,
+        channel: Channel::Number(0),
+        key: Key::Number(69),
+        velocity: 0.0,
+    };
+    let released = run(&mut keymap, &params, &engine, off);
+    assert!(matches!(released[0].event, Event::ContactEnd { key: 69 }));
+}

@@ -192,7 +192,7 @@ fn a_held_contact_scrapes_until_released_and_pressure_presses_harder() {
     };
     let (mut audio, _c) = ready(EngineConfig::default(), voicing, bar(24));
     let silent = ResonatorSettings::default();
-    let mut run = |audio: &mut AudioEngine, seconds: f64, events: &[TimedEvent]| {
+    let run = |audio: &mut AudioEngine, seconds: f64, events: &[TimedEvent]| {
         let mut out = vec![0f32; (seconds * FS) as usize];
         for (b, y) in out.chunks_mut(64).enumerate() {
             audio.process(y, if b == 0 { events } else { &[] });
