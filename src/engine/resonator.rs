@@ -47,8 +47,9 @@ const CULL_RATIO: f64 = 1e-4;
 pub struct ResonatorSettings {
     /// Linear gain on the input before the resonators (0 switches the effect off).
     pub input_gain: f32,
-    /// Share of the resonated signal in what is added to the output, `0..=1`; the rest is the
-    /// (pre-filtered) input itself.
+    /// Share of the resonated input in what is added to the output, `0..=1`; the rest is the
+    /// (pre-filtered) input itself. A contact's scraping ([`ContactForce`]) is always resonated
+    /// in full.
     pub mix: f32,
     /// Corner of the one-pole low cut on the input, Hz.
     pub low_cut_hz: f64,
@@ -302,7 +303,9 @@ impl InputResonator {
                 self.low_cut_x = s;
                 self.high_cut_y += high_a * (self.low_cut_y - self.high_cut_y);
                 dry[i] = gain * self.high_cut_y;
-                *xi = dry[i];
+                // The bank is linear: feeding it `mix` of the input is the crossfade's wet
+                // share, and leaves a contact's noise (added below) at its full level.
+                *xi = mix * dry[i];
                 if contact_target > 0.0 || self.contact_level > 0.0 {
                     self.contact_level +=
                         (contact_target - self.contact_level) / CONTACT_GLIDE_SAMPLES;
@@ -328,7 +331,7 @@ impl InputResonator {
             }
             for ((o, w), d) in chunk.iter_mut().zip(wet.iter()).zip(dry.iter()) {
                 let w = w.clamp(-MAX_WET, MAX_WET);
-                *o += output_gain * (mix * w + (1.0 - mix) * d);
+                *o += output_gain * (w + (1.0 - mix) * d);
             }
         }
     }

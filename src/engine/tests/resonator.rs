@@ -191,7 +191,11 @@ fn a_held_contact_scrapes_until_released_and_pressure_presses_harder() {
         alpha2: 1e-8,
     };
     let (mut audio, _c) = ready(EngineConfig::default(), voicing, bar(24));
-    let silent = ResonatorSettings::default();
+    // No side-chain, and its mix at 0 (all dry): the scraping is resonated in full anyway.
+    let silent = ResonatorSettings {
+        mix: 0.0,
+        ..ResonatorSettings::default()
+    };
     let run = |audio: &mut AudioEngine, seconds: f64, events: &[TimedEvent]| {
         let mut out = vec![0f32; (seconds * FS) as usize];
         for (b, y) in out.chunks_mut(64).enumerate() {
