@@ -54,6 +54,10 @@ fn main() {
         println!("assembly {ms:.1} ms, {dofs} DOFs");
         return;
     }
+    if std::env::args().any(|a| a == "--blocked") {
+        blocked(quick);
+        return;
+    }
     println!(
         "{:<24} {:<9} {:<6} {:>7} {:>9} {:>9} {:>12}",
         "shape", "voxels", "element", "DOFs", "split %", "error %", "assembly ms"
@@ -94,6 +98,45 @@ fn main() {
                 println!(
                     "{spec:<24} {voxels:<9} {:<6} {dofs:>7} {split:>9.3} {error:>9.2} {ms:>12.1}",
                     kind
+                );
+            }
+        }
+    }
+}
+
+/// Prototype: hex27 on 2x2x2 voxel blocks, integrated over the voxels' sub-cells.
+fn blocked(quick: bool) {
+    for spec in smooth::specs() {
+        if quick && !spec.starts_with("bowl") {
+            continue;
+        }
+        let want = smooth::reference(&spec);
+        let ShapeSpec::Primitive { shape, .. } = spec.parse::<ShapeSpec>().expect("spec") else {
+            panic!("{spec}: not a primitive")
+        };
+        let grid = shape.rasterize(1.0, 1.0).expect("raster");
+        for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27Blocks] {
+            let t = Instant::now();
+            let model = FemModel::assemble(&grid, kind, smooth::NU).expect("asm");
+            let asm = t.elapsed().as_secs_f64() * 1e3;
+            for count in [16, 60] {
+                let options = EigenOptions {
+                    count: ModeCount::First(count),
+                    tolerance: 1e-6,
+                    ..EigenOptions::default()
+                };
+                let t = Instant::now();
+                let sol =
+                    modalforge::eigen::solve(&model, SolverKind::Lanczos, &options).expect("solve");
+                let solve = t.elapsed().as_secs_f64() * 1e3;
+                let got = sol.eigenvalues.clone();
+                let (split, _) = smooth::worst_split(&got, &want, 12);
+                let error = smooth::worst(&smooth::frequency_errors(&got, &want, 10));
+                let errs = smooth::frequency_errors(&got, &want, 10);
+                println!(
+                    "{spec:<24} {kind:<8} {:>7} modes {count:>3} split {split:>7.3} % worst {error:>6.2} % asm {asm:>7.1} ms solve {solve:>8.1} ms  {:?}",
+                    model.dofs(),
+                    errs.iter().map(|e| (e * 100.0).round() / 100.0).collect::<Vec<_>>()
                 );
             }
         }

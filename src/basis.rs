@@ -25,9 +25,10 @@ use crate::shape::lattice_index;
 use crate::shape::{ops, ShapeError, VoxelGrid};
 
 /// The nodes of a struck face with their interpolation weights (2x2 for hex8, 3x3 for
-/// hex27), and the face's inward normal.
+/// hex27, up to 3x3x3 for hex27x2, whose element can hold the face inside it), and the face's
+/// inward normal.
 struct FaceWeights {
-    nodes: [(usize, f64); 9],
+    nodes: [(usize, f64); 27],
     len: usize,
     normal: [f64; 3],
 }
@@ -515,9 +516,18 @@ impl ModeBasis {
         } = nearest_face(&self.surface, p).ok_or(HitError::NoSurface)?;
         let order = self.model.kind.order();
         let others = [(axis + 1) % 3, (axis + 2) % 3];
-        let local = |a: usize| (p[a] - v[a] as f64).clamp(0.0, 1.0);
-        let (u, w) = (local(others[0]), local(others[1]));
-        // Lagrange shape functions of the face's edge: linear (hex8) or quadratic (hex27).
+        // The struck point on the face, and its coordinates in the element holding the face's
+        // voxel (one voxel, or a block of them: then the face may cross the element's inside
+        // and every node of the element can carry weight).
+        let block = self.model.kind.voxels_per_element();
+        let mut q = [0.0; 3];
+        q[axis] = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
+        for a in others {
+            q[a] = p[a].clamp(v[a] as f64, v[a] as f64 + 1.0);
+        }
+        let cell = v.map(|c| c / block);
+        let local = |a: usize| ((q[a] - (cell[a] * block) as f64) / block as f64).clamp(0.0, 1.0);
+        // Lagrange shape functions along an edge: linear (hex8) or quadratic (hex27).
         let basis = |t: f64| -> [f64; 3] {
             if order == 1 {
                 [1.0 - t, t, 0.0]
@@ -526,22 +536,31 @@ impl ModeBasis {
                 [x * (x - 1.0) / 2.0, 1.0 - x * x, x * (x + 1.0) / 2.0]
             }
         };
-        let (bu, bw) = (basis(u), basis(w));
+        let (bu, bw, bn) = (
+            basis(local(others[0])),
+            basis(local(others[1])),
+            basis(local(axis)),
+        );
         let lattice = self.model.lattice;
         let mut face = FaceWeights {
-            nodes: [(0, 0.0); 9],
+            nodes: [(0, 0.0); 27],
             len: 0,
             normal: [0.0; 3],
         };
         for (i, &wu) in bu.iter().take(order + 1).enumerate() {
             for (j, &ww) in bw.iter().take(order + 1).enumerate() {
-                let mut l = [order * v[0], order * v[1], order * v[2]];
-                l[axis] += if side > 0 { order } else { 0 };
-                l[others[0]] += i;
-                l[others[1]] += j;
-                let node = self.model.lattice_node[lattice_index(l, lattice)];
-                face.nodes[face.len] = (node as usize, wu * ww);
-                face.len += 1;
+                for (k, &wn) in bn.iter().take(order + 1).enumerate() {
+                    if wn == 0.0 {
+                        continue;
+                    }
+                    let mut l = cell.map(|c| order * c);
+                    l[others[0]] += i;
+                    l[others[1]] += j;
+                    l[axis] += k;
+                    let node = self.model.lattice_node[lattice_index(l, lattice)];
+                    face.nodes[face.len] = (node as usize, wu * ww * wn);
+                    face.len += 1;
+                }
             }
         }
         face.normal = normal;
@@ -552,6 +571,53 @@ impl ModeBasis {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_strike_inside_a_block_reads_the_element_field_there() {
+        // hex27x2: the top face of a one-voxel layer lies halfway up its 2x2x2 block, inside
+        // the element. The quadratic shape functions reproduce any linear field exactly, so a
+        // "mode" that is the position field (u_c = x_c) read along axis c at a hit gives the
+        // struck point's coordinate c: on the face inside the block, and on the bottom face.
+        let grid = VoxelGrid::from_fn([4, 4, 3], 1.0, |_, _, z| z < 1.0).unwrap();
+        let options = EigenOptions {
+            count: eigen::ModeCount::First(3),
+            ..Default::default()
+        };
+        let mut basis = ModeBasis::solve(
+            &grid,
+            ElementKind::Hex27Blocks,
+            0.3,
+            SolverKind::Lanczos,
+            &options,
+        )
+        .unwrap();
+        let n = basis.model.nodes();
+        let mut field = faer::Mat::<f64>::zeros(3 * n, 3);
+        for node in 0..n {
+            let p = basis.model.node_position(node);
+            (0..3).for_each(|c| field[(3 * node + c, c)] = p[c]);
+        }
+        basis.solution.vectors = field;
+        for (aim, lands) in [
+            ([1.3, 2.6, 1.7], [1.3, 2.6, 1.0]),
+            ([0.7, 3.1, 0.2], [0.7, 3.1, 0.0]),
+        ] {
+            for c in 0..3 {
+                let mut direction = [0.0; 3];
+                direction[c] = 1.0;
+                let hit = Hit {
+                    point_m: aim,
+                    direction: Some(direction),
+                };
+                let mut out = [0.0; 3];
+                basis.reference_forces_into(&hit, 1.0, &mut out).unwrap();
+                assert!(
+                    (out[c] - lands[c]).abs() < 1e-12,
+                    "{aim:?} axis {c}: {out:?}"
+                );
+            }
+        }
+    }
 
     /// Face counts from Euler-style counting: a box of a x b x c voxels exposes
     /// 2 (ab + bc + ca) faces, whatever its position in the grid; a hollow cavity adds its

@@ -15,7 +15,7 @@ pub mod element;
 pub mod ordering;
 pub mod sparse;
 
-use crate::shape::{lattice_coords, lattice_index};
+use crate::shape::{lattice_coords, lattice_index, VoxelFill};
 pub use element::{ElementKind, UnitElement};
 use sparse::{BlockPattern, Blocks};
 
@@ -28,17 +28,23 @@ pub struct FemModel {
     pub kind: ElementKind,
     /// Poisson's ratio.
     pub poisson_ratio: f64,
-    /// Lattice dimensions (`p n + 1` per axis).
+    /// Voxels along x, y, z of the grid the model was assembled from.
+    pub voxel_dims: [usize; 3],
+    /// Lattice dimensions (`p n + 1` per axis, `n` elements along it).
     pub lattice: [usize; 3],
     /// Lattice index of each model node.
     pub node_lattice: Vec<usize>,
     /// Lattice index -> node number (`u32::MAX` where unused).
     pub lattice_node: Vec<u32>,
-    /// Local-to-global node numbers, `kind.nodes()` per element (one element per solid voxel, in
-    /// the grid's storage order).
+    /// Local-to-global node numbers, `kind.nodes()` per element (one element per solid voxel,
+    /// or per block of them, in the grid's storage order).
     pub elements: Vec<u32>,
-    /// The solid voxels, in element order.
+    /// The elements' cells: the solid voxels, or for [`ElementKind::Hex27Blocks`] the blocks
+    /// (in block coordinates, [`FemModel::cell_dims`]), in element order.
     pub voxels: Vec<[usize; 3]>,
+    /// For [`ElementKind::Hex27Blocks`], a fingerprint of each element's voxel fills (what a
+    /// stroke inside a block changes without changing the blocks); empty otherwise.
+    pub cell_fills: Vec<u64>,
     /// Block sparsity shared by `K` and `M`.
     pub pattern: BlockPattern,
     /// Stiffness blocks.
@@ -48,21 +54,34 @@ pub struct FemModel {
 }
 
 impl FemModel {
-    /// Assembles `K` and `M` for every solid voxel of `grid`.
+    /// Assembles `K` and `M` for every solid voxel of `grid`: one element per voxel, or for
+    /// [`ElementKind::Hex27Blocks`] one per block of `2^3` voxels (a block holding any solid
+    /// voxel is an element), integrated over the voxels' fills sub-cell by sub-cell (a block
+    /// with an empty or partial voxel is a cut element of `2 * subcells_per_axis(kind)`
+    /// sub-cells per axis). The matrices are in voxel reference units either way: a block's
+    /// are its own unit-edge matrices times `b` (stiffness) and `b^3` (mass), `b` voxels a side.
     pub fn assemble(
         grid: &VoxelGrid,
         kind: ElementKind,
         poisson_ratio: f64,
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
-        let unit = UnitElement::new(kind, poisson_ratio);
+        let block = kind.voxels_per_element();
+        let mut unit = UnitElement::new(kind, poisson_ratio);
+        // Voxel reference units: K = E h K_ref and M = rho h^3 M_ref with h the element edge.
+        let (k_scale, m_scale) = (block as f64, (block * block * block) as f64);
+        if block > 1 {
+            unit.stiffness.iter_mut().for_each(|v| *v *= k_scale);
+            unit.mass.iter_mut().for_each(|v| *v *= m_scale);
+        }
         let p = kind.order();
         let n1 = p + 1;
         let nloc = kind.nodes();
-        let dims = grid.dims();
+        let fine_dims = grid.dims();
+        let dims = fine_dims.map(|d| d.div_ceil(block));
         let lattice = [p * dims[0] + 1, p * dims[1] + 1, p * dims[2] + 1];
         let lidx = |x: usize, y: usize, z: usize| lattice_index([x, y, z], lattice);
-        let voxels = grid.solid_voxels();
+        let voxels = element_cells(grid, kind);
         // Number the nodes in lattice order (keeps neighbours close in memory).
         let mut lattice_node = vec![u32::MAX; lattice.iter().product()];
         for v in &voxels {
@@ -96,15 +115,20 @@ impl FemModel {
         let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
         let mut k = crate::buffer::zeroed(pattern.col.len());
         let mut m = crate::buffer::zeroed(pattern.col.len());
-        // Partial voxels: cut elements, evaluated in batches.
-        let cut = (!grid.is_binary())
-            .then(|| cut::CutElement::new(kind, poisson_ratio, cut::subcells_per_axis(kind)));
+        // Partial voxels (and blocks that are not solid throughout): cut elements, evaluated
+        // in batches.
+        let per_voxel = cut::subcells_per_axis(kind);
+        let cut = (!grid.is_binary() || block > 1)
+            .then(|| cut::CutElement::new(kind, poisson_ratio, per_voxel * block));
         let mut scratch = cut.as_ref().map(|c| c.scratch());
         let subcells = cut.as_ref().map_or(0, |c| c.per_axis().pow(3));
         // The batch: element numbers, and their sub-cell fills side by side.
         let mut pending: Vec<usize> = Vec::with_capacity(cut::CUT_BATCH);
         let mut fills = vec![0.0; subcells * cut::CUT_BATCH];
+        let mut voxel_fill = vec![0.0; per_voxel.pow(3)];
         let mut slots = vec![0usize; nloc * nloc];
+        let ndof = 3 * nloc;
+        let mut scaled = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
         let mut flush =
             |pending: &mut Vec<usize>, fills: &[f64], k: &mut [[f64; 9]], m: &mut [[f64; 9]]| {
                 if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
@@ -113,38 +137,59 @@ impl FemModel {
                     cut.matrices_batch(&batch, scratch, |j, ke, me| {
                         let e = pending[j];
                         let nodes = &elements[e * nloc..(e + 1) * nloc];
-                        sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
+                        if block == 1 {
+                            sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
+                        } else {
+                            let (ks, ms) = &mut scaled;
+                            ks.iter_mut().zip(ke).for_each(|(s, v)| *s = v * k_scale);
+                            ms.iter_mut().zip(me).for_each(|(s, v)| *s = v * m_scale);
+                            sparse::add_element(&pattern, nodes, ks, ms, k, m, &mut slots);
+                        }
                     });
                 }
                 pending.clear();
             };
         let mut unit_slots = vec![0usize; nloc * nloc];
+        let mut cell_fills = Vec::with_capacity(if block > 1 { voxels.len() } else { 0 });
         for (e, v) in voxels.iter().enumerate() {
-            match (grid.subcell_fill(grid.index(v[0], v[1], v[2])), &cut) {
-                (Some(fill), Some(_)) => {
-                    let at = pending.len() * subcells;
-                    fill.coarsened_into(&mut fills[at..at + subcells]);
-                    pending.push(e);
-                    if pending.len() == cut::CUT_BATCH {
-                        flush(&mut pending, &fills, &mut k, &mut m);
-                    }
+            let cut_fill = if block == 1 {
+                grid.subcell_fill(grid.index(v[0], v[1], v[2]))
+                    .filter(|_| cut.is_some())
+                    .map(|fill| {
+                        let at = pending.len() * subcells;
+                        fill.coarsened_into(&mut fills[at..at + subcells]);
+                    })
+                    .is_some()
+            } else {
+                let at = pending.len() * subcells;
+                let out = &mut fills[at..at + subcells];
+                let (full, fingerprint) =
+                    gather_block_fill(grid, *v, block, per_voxel, &mut voxel_fill, out);
+                cell_fills.push(fingerprint);
+                !full
+            };
+            if cut_fill {
+                pending.push(e);
+                if pending.len() == cut::CUT_BATCH {
+                    flush(&mut pending, &fills, &mut k, &mut m);
                 }
-                _ => {
-                    let nodes = &elements[e * nloc..(e + 1) * nloc];
-                    let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
-                    sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
-                }
+            } else {
+                let nodes = &elements[e * nloc..(e + 1) * nloc];
+                let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
+                sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
             }
         }
         flush(&mut pending, &fills, &mut k, &mut m);
         Ok(FemModel {
             kind,
             poisson_ratio,
+            voxel_dims: fine_dims,
             lattice,
             node_lattice,
             lattice_node,
             elements,
             voxels,
+            cell_fills,
             pattern,
             k,
             m,
@@ -177,15 +222,101 @@ impl FemModel {
 
     /// Position of a node in voxel units.
     pub fn node_position(&self, node: usize) -> [f64; 3] {
-        let p = self.kind.order() as f64;
+        let p = self.kind.order() as f64 / self.kind.voxels_per_element() as f64;
         self.node_lattice_coords(node).map(|c| c as f64 / p)
     }
 
     /// Voxels along x, y, z of the grid the model was assembled from.
     pub fn grid_dims(&self) -> [usize; 3] {
+        self.voxel_dims
+    }
+
+    /// Element cells along x, y, z: the voxels, or the blocks of
+    /// [`ElementKind::Hex27Blocks`] (the coordinates of [`FemModel::voxels`]).
+    pub fn cell_dims(&self) -> [usize; 3] {
         let p = self.kind.order();
         self.lattice.map(|l| (l - 1) / p)
     }
+}
+
+/// The cells of `grid` that `kind` puts an element on, in storage order: the solid voxels, or
+/// for [`ElementKind::Hex27Blocks`] the `2^3` blocks holding any solid voxel (in block
+/// coordinates).
+pub fn element_cells(grid: &VoxelGrid, kind: ElementKind) -> Vec<[usize; 3]> {
+    let block = kind.voxels_per_element();
+    if block == 1 {
+        return grid.solid_voxels();
+    }
+    let dims = grid.dims().map(|d| d.div_ceil(block));
+    let mut occupied = vec![false; dims.iter().product()];
+    for v in grid.solid_voxels() {
+        occupied[lattice_index(v.map(|c| c / block), dims)] = true;
+    }
+    occupied
+        .iter()
+        .enumerate()
+        .filter(|(_, &o)| o)
+        .map(|(i, _)| lattice_coords(i, dims))
+        .collect()
+}
+
+/// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
+/// `block^3` voxels from `cell * block` into `out`: a full voxel's sub-cells are 1, an empty or
+/// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
+/// per axis. Returns whether every voxel of the block is full (the unit element applies), and a
+/// fingerprint of the voxels' fills (FNV-1a over their states and sub-cell bytes).
+fn gather_block_fill(
+    grid: &VoxelGrid,
+    cell: [usize; 3],
+    block: usize,
+    per_voxel: usize,
+    voxel_fill: &mut [f64],
+    out: &mut [f64],
+) -> (bool, u64) {
+    let side = block * per_voxel;
+    let mut full = true;
+    let mut fingerprint: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |byte: u8| {
+        fingerprint = (fingerprint ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
+    };
+    for oz in 0..block {
+        for oy in 0..block {
+            for ox in 0..block {
+                let v = [
+                    cell[0] * block + ox,
+                    cell[1] * block + oy,
+                    cell[2] * block + oz,
+                ];
+                let fill = grid.fill_at(v[0] as isize, v[1] as isize, v[2] as isize);
+                match fill {
+                    VoxelFill::Empty => {
+                        voxel_fill.fill(0.0);
+                        mix(0);
+                    }
+                    VoxelFill::Full => {
+                        voxel_fill.fill(1.0);
+                        mix(1);
+                    }
+                    VoxelFill::Partial(f) => {
+                        f.coarsened_into(voxel_fill);
+                        mix(2);
+                        f.0.iter().for_each(|&b| mix(b));
+                    }
+                }
+                full &= fill == VoxelFill::Full;
+                for sz in 0..per_voxel {
+                    for sy in 0..per_voxel {
+                        let from = per_voxel * (sy + per_voxel * sz);
+                        let to = ox * per_voxel
+                            + side * (oy * per_voxel + sy + side * (oz * per_voxel + sz));
+                        out[to..to + per_voxel]
+                            .copy_from_slice(&voxel_fill[from..from + per_voxel]);
+                    }
+                }
+            }
+        }
+    }
+    (full, fingerprint)
 }
 
 /// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).
@@ -204,6 +335,8 @@ pub fn auto_resolution(
     let d_over_rho_t =
         material.youngs_modulus_pa * t * t / (12.0 * (1.0 - nu * nu) * material.density_kg_m3);
     let bending = std::f64::consts::TAU * d_over_rho_t.powf(0.25) / omega.sqrt();
+    // Voxels per wavelength: 3 quadratic elements, or 6 linear ones (hex27x2's quadratic
+    // elements are 2 voxels long).
     let per_wavelength = match element {
         ElementKind::Hex27 => 3.0,
         _ => 6.0,

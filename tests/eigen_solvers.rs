@@ -80,6 +80,7 @@ fn lobpcg_agrees_with_lanczos_and_both_satisfy_the_identities() {
         ),
         ("L bracket hex8", bracket, ElementKind::Hex8),
         ("bowl d=12 hex27", bowl(12.0), ElementKind::Hex27),
+        ("bowl d=16 hex27x2", bowl(16.0), ElementKind::Hex27Blocks),
         (
             "plate 24x24x1 hex8i",
             VoxelGrid::from_fn([24, 24, 1], 1.0, |_, _, _| true).unwrap(),

@@ -40,7 +40,11 @@ fn binary_grids_assemble_exactly_todays_matrices() {
         .rasterize_staircase(1.0, 1.0)
         .unwrap();
     assert!(grid.is_binary());
-    for kind in ElementKind::ALL {
+    // Kinds with one element per voxel (hex27x2's blocks: the next test).
+    for kind in ElementKind::ALL
+        .into_iter()
+        .filter(|k| k.voxels_per_element() == 1)
+    {
         let model = FemModel::assemble(&grid, kind, NU).unwrap();
         let unit = UnitElement::new(kind, NU);
         let mut k = vec![[0.0; 9]; model.pattern.col.len()];
@@ -55,6 +59,56 @@ fn binary_grids_assemble_exactly_todays_matrices() {
             &mut m,
         );
         assert!(model.k[..] == k[..] && model.m[..] == m[..], "{kind:?}");
+    }
+}
+
+#[test]
+fn hex27x2_is_hex27_on_the_grid_of_blocks() {
+    // A block of 2^3 full voxels is one hex27 element of edge 2: in voxel reference units its
+    // stiffness is twice and its mass eight times the unit element's (K = E h K_ref, M = rho
+    // h^3 M_ref), exactly (powers of two). So a binary grid of full blocks assembles to hex27 on
+    // the grid of blocks, times 2 and 8, bit for bit.
+    let fine =
+        VoxelGrid::from_fn([6, 4, 8], 1.0, |x, y, z| x >= 2.0 || (y >= 2.0 && z < 4.0)).unwrap();
+    let coarse =
+        VoxelGrid::from_fn([3, 2, 4], 2.0, |x, y, z| x >= 1.0 || (y >= 1.0 && z < 2.0)).unwrap();
+    let blocks = FemModel::assemble(&fine, ElementKind::Hex27Blocks, NU).unwrap();
+    let hex27 = FemModel::assemble(&coarse, ElementKind::Hex27, NU).unwrap();
+    assert_eq!(blocks.dofs(), hex27.dofs());
+    assert_eq!(blocks.voxels, hex27.voxels);
+    assert_eq!(
+        (blocks.grid_dims(), blocks.cell_dims()),
+        ([6, 4, 8], [3, 2, 4])
+    );
+    let twice: Vec<_> = hex27.k.iter().map(|b| b.map(|v| 2.0 * v)).collect();
+    let eight: Vec<_> = hex27.m.iter().map(|b| b.map(|v| 8.0 * v)).collect();
+    assert!(blocks.k[..] == twice[..] && blocks.m[..] == eight[..]);
+    // Node positions in voxels: the block's far corner is 2 voxels out.
+    let far = (0..blocks.nodes())
+        .map(|n| blocks.node_position(n))
+        .fold([0.0f64; 3], |m, p| [0, 1, 2].map(|a| m[a].max(p[a])));
+    assert_eq!(far, [6.0, 4.0, 8.0]);
+
+    // A block whose lower voxel layer is full and upper one empty is hex27 over a coarse voxel
+    // whose lower half of sub-cells is full: the same integral, summed over 8 sub-cells per
+    // axis instead of 4 (rounding only: 1e-12 of the largest entry).
+    let fine = VoxelGrid::from_fn([4, 4, 2], 1.0, |_, _, z| z < 1.0).unwrap();
+    let mut coarse = VoxelGrid::new([2, 2, 1], 2.0).unwrap();
+    let n = modalforge::shape::fill::SUBCELLS_PER_AXIS;
+    let half = std::array::from_fn(|i| if i / (n * n) < n / 2 { 1.0 } else { 0.0 });
+    for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        let fill = modalforge::shape::SubFill::from_fractions(half);
+        coarse.set_fill(x, y, 0, modalforge::shape::VoxelFill::Partial(fill));
+    }
+    let blocks = FemModel::assemble(&fine, ElementKind::Hex27Blocks, NU).unwrap();
+    let hex27 = FemModel::assemble(&coarse, ElementKind::Hex27, NU).unwrap();
+    let scale = hex27.k.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in blocks.k.iter().flatten().zip(hex27.k.iter().flatten()) {
+        assert!((a - 2.0 * b).abs() < 1e-12 * 2.0 * scale, "{a} vs 2 x {b}");
+    }
+    let scale = hex27.m.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in blocks.m.iter().flatten().zip(hex27.m.iter().flatten()) {
+        assert!((a - 8.0 * b).abs() < 1e-12 * 8.0 * scale, "{a} vs 8 x {b}");
     }
 }
 
@@ -128,4 +182,33 @@ fn the_default_bowl_rings_true_with_quadratic_elements() {
         split8 < split_old / 3.0,
         "partial voxels must close the split"
     );
+}
+
+#[test]
+fn hex27x2_rings_every_curved_primitive_true() {
+    // Quadratic elements on 2x2x2-voxel blocks, integrated over the voxels' sub-cells, against
+    // the smooth solids. The split bounds: every degenerate group among the lowest 12
+    // modes within 0.5 % on the 16-voxel bowl and 0.2 % on every other shape (measured 0.19 %
+    // and 0.011-0.057 %). Frequencies (lowest 10): thin curved walls within 3 % (measured
+    // +1.6 to +2.6 %: the sub-cells smear a cut voxel's fill, which stiffens bending; hex8i is
+    // 8-11 % sharp), solids within 0.5 % (measured 0.08-0.09 %). The tube's and cup's
+    // references are converged to about 1 % only (scripts/smooth_reference.py), which the
+    // 3 % bound leaves room for.
+    for spec in common::smooth::specs() {
+        let want = reference(&spec);
+        let grid = primitive(&spec).rasterize(1.0, 1.0).unwrap();
+        let got = eigenvalues(&grid, ElementKind::Hex27Blocks, 16);
+        let errors = frequency_errors(&got, &want, 10);
+        let (split, groups) = worst_split(&got, &want, 12);
+        eprintln!(
+            "{spec}: hex27x2 worst {:.2} %, split {split:.3} % ({groups} groups)",
+            worst(&errors)
+        );
+        assert!(groups >= 1, "{spec}: the reference has degenerate groups");
+        let split_bound = if spec == "bowl:d=16,wall=2" { 0.5 } else { 0.2 };
+        assert!(split < split_bound, "{spec}: split {split:.3} %");
+        let solid = spec.starts_with("sphere") || spec.starts_with("cylinder");
+        let bound = if solid { 0.5 } else { 3.0 };
+        assert!(worst(&errors) < bound, "{spec}: {errors:?}");
+    }
 }

@@ -117,6 +117,7 @@ pub fn object_request(params: &ModalForgeParams, table: &MaterialTable) -> Optio
         element: match params.solver.element.value() {
             ElementChoice::Hex8i => ElementKind::Hex8Incompatible,
             ElementChoice::Hex27 => ElementKind::Hex27,
+            ElementChoice::Hex27x2 => ElementKind::Hex27Blocks,
         },
         poisson_ratio: params.poisson_ratio(table),
         solver: match params.solver.kind.value() {

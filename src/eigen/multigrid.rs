@@ -112,8 +112,12 @@ pub struct Multigrid {
 impl Multigrid {
     /// Builds the hierarchy of `model` for blocks of up to `max_width` vectors.
     pub fn new(model: &FemModel, max_width: usize) -> Result<Self, EigenError> {
-        let unit = UnitElement::new(model.kind, model.poisson_ratio);
-        let fine_dims = model.grid_dims();
+        let mut unit = UnitElement::new(model.kind, model.poisson_ratio);
+        // The model's element matrices in voxel units (hex27x2's blocks are 2 voxels a side).
+        let b = model.kind.voxels_per_element() as f64;
+        unit.stiffness.iter_mut().for_each(|v| *v *= b);
+        unit.mass.iter_mut().for_each(|v| *v *= b * b * b);
+        let fine_dims = model.cell_dims();
         let voxel_mesh = |k: Vec<f64>, m: Vec<f64>| CellMesh {
             dims: fine_dims,
             cells: model.voxels.clone(),
@@ -123,7 +127,7 @@ impl Multigrid {
         };
         // The first coarse mesh: hex8 on the same voxels (hex27), or 2x2x2 coarser cells.
         let mut next = match model.kind {
-            ElementKind::Hex27 => {
+            ElementKind::Hex27 | ElementKind::Hex27Blocks => {
                 let p = hex27_to_hex8();
                 voxel_mesh(
                     galerkin(&unit.stiffness, &p, 27),

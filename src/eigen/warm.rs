@@ -66,10 +66,11 @@ pub struct Transferred {
 }
 
 /// The voxel offset `d` that maps the most voxels of `next` onto voxels of `previous`
+/// (element cells: blocks of voxels for [`crate::fem::ElementKind::Hex27Blocks`])
 /// (`next` voxel `v` is `previous` voxel `v + d`), and that overlap's size. Offset zero wins
 /// ties.
 pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
-    align_voxels(&previous.voxels, previous.grid_dims(), &next.voxels)
+    align_voxels(&previous.voxels, previous.cell_dims(), &next.voxels)
 }
 
 /// [`align`] on voxel lists: `previous` lies in a grid of `previous_dims`.
@@ -358,27 +359,40 @@ const PATCH_RADIUS: i64 = 2;
 const MAX_PATCH_DOFS: usize = 1500;
 
 /// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
-/// added or removed. `None` if nothing changed or the patch is too large to relax densely.
+/// added or removed (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block of a block
+/// added, removed or refilled). `None` if nothing changed or the patch is too large to relax
+/// densely.
 fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<Vec<usize>> {
     use std::collections::HashSet;
-    let old: HashSet<[i64; 3]> = previous
+    // A cell and its fill's fingerprint (0 where the model keeps none: one element per voxel).
+    let fingerprint = |m: &FemModel, e: usize| m.cell_fills.get(e).copied().unwrap_or(0);
+    let old: HashSet<([i64; 3], u64)> = previous
         .voxels
         .iter()
-        .map(|v| [0, 1, 2].map(|a| v[a] as i64 - offset[a]))
+        .enumerate()
+        .map(|(e, v)| {
+            let c = [0, 1, 2].map(|a| v[a] as i64 - offset[a]);
+            (c, fingerprint(previous, e))
+        })
         .collect();
-    let new: HashSet<[i64; 3]> = next.voxels.iter().map(|v| v.map(|c| c as i64)).collect();
-    let edited: Vec<[i64; 3]> = old.symmetric_difference(&new).copied().collect();
+    let new: HashSet<([i64; 3], u64)> = next
+        .voxels
+        .iter()
+        .enumerate()
+        .map(|(e, v)| (v.map(|c| c as i64), fingerprint(next, e)))
+        .collect();
+    let edited: HashSet<[i64; 3]> = old.symmetric_difference(&new).map(|(c, _)| *c).collect();
     if edited.is_empty() || edited.len() > 64 {
         return None;
     }
+    let block = next.kind.voxels_per_element() as i64;
+    let radius = (PATCH_RADIUS + block - 1) / block;
     let p = next.kind.order() as i64;
     let nodes: Vec<usize> = (0..next.nodes())
         .filter(|&node| {
             let q = next.node_lattice_coords(node);
             edited.iter().any(|v| {
-                (0..3).all(|a| {
-                    q[a] >= p * (v[a] - PATCH_RADIUS) && q[a] <= p * (v[a] + 1 + PATCH_RADIUS)
-                })
+                (0..3).all(|a| q[a] >= p * (v[a] - radius) && q[a] <= p * (v[a] + 1 + radius))
             })
         })
         .collect();

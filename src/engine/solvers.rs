@@ -127,8 +127,8 @@ fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
     if old.kind != request.element || old.poisson_ratio != request.poisson_ratio {
         return false;
     }
-    let next = request.grid.solid_voxels();
-    let (_, overlap) = crate::eigen::warm::align_voxels(&old.voxels, previous.grid_dims(), &next);
+    let next = crate::fem::element_cells(&request.grid, request.element);
+    let (_, overlap) = crate::eigen::warm::align_voxels(&old.voxels, old.cell_dims(), &next);
     overlap as f64 >= WARM_MIN_OVERLAP * next.len().max(old.voxels.len()) as f64
 }
 

@@ -38,7 +38,7 @@ pub const EMPTY_SUBCELL_FLOOR: f64 = 1e-3;
 /// the more its lattice anisotropy shows), and so is plain hex8.
 pub fn subcells_per_axis(kind: ElementKind) -> usize {
     match kind {
-        ElementKind::Hex27 => 4,
+        ElementKind::Hex27 | ElementKind::Hex27Blocks => 4,
         ElementKind::Hex8 | ElementKind::Hex8Incompatible => 2,
     }
 }
@@ -102,7 +102,7 @@ impl CutElement {
     /// Integrates the `per_axis^3` sub-cells of `kind` for Poisson's ratio `nu`.
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);
-        let integrals = if kind == ElementKind::Hex27 {
+        let integrals = if kind.order() == 2 {
             Integrals::Tensor(tensor::Hex27Subcells::new(per_axis, nu))
         } else {
             Integrals::Table(Box::new(SubcellTable::new(kind, nu, per_axis)))

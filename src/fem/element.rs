@@ -28,6 +28,11 @@ pub enum ElementKind {
     Hex8Incompatible,
     /// Triquadratic 27-node hexahedron (most accurate).
     Hex27,
+    /// Triquadratic 27-node hexahedron on blocks of 2x2x2 voxels, integrated over the voxels'
+    /// fills (the finite cell method): hex27's bending on curved thin walls at about hex8i's
+    /// DOFs (ARCHITECTURE.md, "Partial voxels").
+    #[value(name = "hex27x2")]
+    Hex27Blocks,
 }
 
 impl std::fmt::Display for ElementKind {
@@ -40,7 +45,15 @@ impl ElementKind {
     /// Polynomial order of the nodal interpolation.
     pub fn order(self) -> usize {
         match self {
-            ElementKind::Hex27 => 2,
+            ElementKind::Hex27 | ElementKind::Hex27Blocks => 2,
+            _ => 1,
+        }
+    }
+
+    /// Voxels along each edge of one element: 2 for [`ElementKind::Hex27Blocks`], else 1.
+    pub fn voxels_per_element(self) -> usize {
+        match self {
+            ElementKind::Hex27Blocks => 2,
             _ => 1,
         }
     }
@@ -51,9 +64,10 @@ impl ElementKind {
     }
 
     /// Every kind, cheapest first.
-    pub const ALL: [ElementKind; 3] = [
+    pub const ALL: [ElementKind; 4] = [
         ElementKind::Hex8,
         ElementKind::Hex8Incompatible,
+        ElementKind::Hex27Blocks,
         ElementKind::Hex27,
     ];
 }
