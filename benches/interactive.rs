@@ -1,8 +1,8 @@
 //! The time from a sculpting edit to exact modes, on one core: what a sound designer waits for.
 //!
 //! `cargo bench --bench interactive` prints, for the plugin's default object and every preset
-//! in `presets/objects/` (60 modes, the plugin's default; hex8 with incompatible modes; the
-//! preset's material's Poisson's ratio; residual 1e-6):
+//! in `presets/objects/` (60 modes and hex27x2, the plugin's defaults, or `-- --element
+//! hex8i`; the preset's material's Poisson's ratio; residual 1e-6):
 //! - **cold**: assembly + a solve from scratch (the time split, the solver that ran), the
 //!   median of [`COLD_RUNS`] runs;
 //! - **ritz / warm**: after a one-voxel brush stroke (a voxel added on the surface, then one
@@ -218,8 +218,15 @@ fn main() {
         count: ModeCount::First(MODES),
         ..Default::default()
     };
-    let kind = ElementKind::Hex8Incompatible;
-    println!("\nedit-to-modes, one core, {MODES} modes, residual 1e-6 (ms)");
+    let kind = args
+        .iter()
+        .position(|a| a == "--element")
+        .and_then(|i| args.get(i + 1))
+        .map(|name| {
+            <ElementKind as clap::ValueEnum>::from_str(name, true).expect("--element hex8i|...")
+        })
+        .unwrap_or(ElementKind::Hex27Blocks);
+    println!("\nedit-to-modes, one core, {MODES} modes, residual 1e-6 (ms), {kind}");
     println!(
         "{:<16} {:>6} | {:>6} {:>6} {:>6} {:>7} {:>8} | {:>6} {:>7} {:>7} {:>4} {:>8} | {:>6} {:>7} {:>7} {:>4} {:>8} | {:>7} {:>7}",
         "object", "dofs", "asm", "setup", "iter", "cold", "solver", "ritz+", "err", "warm+",

@@ -4,11 +4,13 @@
 //! - **split**: the largest frequency split of a degenerate group of the smooth solid among
 //!   the lowest 12 modes (exactly 0 for the true object);
 //! - **error**: the worst frequency error of the lowest 10 modes against the reference;
-//! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs.
+//! - **assembly**: the median time of `FemModel::assemble` (5 runs, one core), and the DOFs;
+//! - **solve**: assembly and the solve of 16 modes to a residual of 1e-8 (one run, one core).
 //!
-//! `cargo bench --bench partial_voxels` (all shapes; hex27 only up to 80k DOFs);
-//! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly` repeats the
-//! 32-voxel bowl's hex8i assembly (for a profiler).
+//! `cargo bench --bench partial_voxels` (all shapes, hex8i, hex27x2 and hex27; hex27 only up to
+//! 150k DOFs);
+//! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly [ELEMENT]`
+//! repeats the 32-voxel bowl's assembly (hex8i by default; for a profiler).
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
@@ -41,26 +43,28 @@ fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let only_hex8i = std::env::args().any(|a| a == "--hex8i");
     if std::env::args().any(|a| a == "--assembly") {
-        // Assembly only, repeated (for a profiler): the 32-voxel bowl, partial voxels, hex8i.
+        // Assembly only, repeated (for a profiler): the 32-voxel bowl, partial voxels, hex8i
+        // (or the element named after it).
+        let kind = std::env::args()
+            .skip_while(|a| a != "--assembly")
+            .nth(1)
+            .and_then(|name| <ElementKind as clap::ValueEnum>::from_str(&name, true).ok())
+            .unwrap_or(ElementKind::Hex8Incompatible);
         let ShapeSpec::Primitive { shape, .. } = "bowl:d=32,wall=2".parse::<ShapeSpec>().unwrap()
         else {
             unreachable!()
         };
         let grid = shape.rasterize(1.0, 1.0).expect("raster");
-        let (ms, dofs) = median_assembly_ms(&grid, ElementKind::Hex8Incompatible);
-        for _ in 0..40 {
-            median_assembly_ms(&grid, ElementKind::Hex8Incompatible);
+        let (ms, dofs) = median_assembly_ms(&grid, kind);
+        for _ in 0..8 {
+            median_assembly_ms(&grid, kind);
         }
-        println!("assembly {ms:.1} ms, {dofs} DOFs");
-        return;
-    }
-    if std::env::args().any(|a| a == "--blocked") {
-        blocked(quick);
+        println!("{kind} assembly {ms:.1} ms, {dofs} DOFs");
         return;
     }
     println!(
-        "{:<24} {:<9} {:<6} {:>7} {:>9} {:>9} {:>12}",
-        "shape", "voxels", "element", "DOFs", "split %", "error %", "assembly ms"
+        "{:<24} {:<9} {:<8} {:>7} {:>9} {:>9} {:>12} {:>9}",
+        "shape", "voxels", "element", "DOFs", "split %", "error %", "assembly ms", "solve ms"
     );
     for spec in smooth::specs() {
         if quick && !spec.starts_with("bowl") {
@@ -77,7 +81,11 @@ fn main() {
             ),
             ("partial", shape.rasterize(1.0, 1.0).expect("raster")),
         ] {
-            for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27] {
+            for kind in [
+                ElementKind::Hex8Incompatible,
+                ElementKind::Hex27Blocks,
+                ElementKind::Hex27,
+            ] {
                 if only_hex8i && kind == ElementKind::Hex27 {
                     continue;
                 }
@@ -90,53 +98,17 @@ fn main() {
                     tolerance: 1e-8,
                     ..EigenOptions::default()
                 };
+                let t = Instant::now();
                 let basis = ModeBasis::solve(&grid, kind, smooth::NU, SolverKind::Auto, &options)
                     .expect("solve");
+                let solve_ms = t.elapsed().as_secs_f64() * 1e3;
                 let got = &basis.solution.eigenvalues;
                 let (split, _) = smooth::worst_split(got, &want, 12);
                 let error = smooth::worst(&smooth::frequency_errors(got, &want, 10));
                 println!(
-                    "{spec:<24} {voxels:<9} {:<6} {dofs:>7} {split:>9.3} {error:>9.2} {ms:>12.1}",
-                    kind
-                );
-            }
-        }
-    }
-}
-
-/// Prototype: hex27 on 2x2x2 voxel blocks, integrated over the voxels' sub-cells.
-fn blocked(quick: bool) {
-    for spec in smooth::specs() {
-        if quick && !spec.starts_with("bowl") {
-            continue;
-        }
-        let want = smooth::reference(&spec);
-        let ShapeSpec::Primitive { shape, .. } = spec.parse::<ShapeSpec>().expect("spec") else {
-            panic!("{spec}: not a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("raster");
-        for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27Blocks] {
-            let t = Instant::now();
-            let model = FemModel::assemble(&grid, kind, smooth::NU).expect("asm");
-            let asm = t.elapsed().as_secs_f64() * 1e3;
-            for count in [16, 60] {
-                let options = EigenOptions {
-                    count: ModeCount::First(count),
-                    tolerance: 1e-6,
-                    ..EigenOptions::default()
-                };
-                let t = Instant::now();
-                let sol =
-                    modalforge::eigen::solve(&model, SolverKind::Lanczos, &options).expect("solve");
-                let solve = t.elapsed().as_secs_f64() * 1e3;
-                let got = sol.eigenvalues.clone();
-                let (split, _) = smooth::worst_split(&got, &want, 12);
-                let error = smooth::worst(&smooth::frequency_errors(&got, &want, 10));
-                let errs = smooth::frequency_errors(&got, &want, 10);
-                println!(
-                    "{spec:<24} {kind:<8} {:>7} modes {count:>3} split {split:>7.3} % worst {error:>6.2} % asm {asm:>7.1} ms solve {solve:>8.1} ms  {:?}",
-                    model.dofs(),
-                    errs.iter().map(|e| (e * 100.0).round() / 100.0).collect::<Vec<_>>()
+                    "{spec:<24} {voxels:<9} {:<8} {dofs:>7} {split:>9.3} {error:>9.2} {ms:>12.1} \
+                     {solve_ms:>9.0}",
+                    kind.to_string()
                 );
             }
         }

@@ -157,7 +157,7 @@ impl FemModel {
                     .filter(|_| cut.is_some())
                     .map(|fill| {
                         let at = pending.len() * subcells;
-                        fill.coarsened_into(&mut fills[at..at + subcells]);
+                        voxel_subcells(grid, *v, fill, &mut fills[at..at + subcells]);
                     })
                     .is_some()
             } else {
@@ -239,6 +239,17 @@ impl FemModel {
     }
 }
 
+/// The sub-cell fractions (x fastest) of the partial voxel `v` of `grid` into `out`, whose
+/// length picks the count per axis: the stored ones averaged down to 1, 2 or 4 per axis, or
+/// refined to 8 by the fill's plane in each cut sub-cell ([`crate::shape::refine`]).
+fn voxel_subcells(grid: &VoxelGrid, v: [usize; 3], fill: &crate::shape::SubFill, out: &mut [f64]) {
+    if out.len() == crate::shape::refine::REFINED_PER_AXIS.pow(3) {
+        crate::shape::refine::refined_fill(grid, v, fill, out);
+    } else {
+        fill.coarsened_into(out);
+    }
+}
+
 /// The cells of `grid` that `kind` puts an element on, in storage order: the solid voxels, or
 /// for [`ElementKind::Hex27Blocks`] the `2^3` blocks holding any solid voxel (in block
 /// coordinates).
@@ -298,7 +309,7 @@ fn gather_block_fill(
                         mix(1);
                     }
                     VoxelFill::Partial(f) => {
-                        f.coarsened_into(voxel_fill);
+                        voxel_subcells(grid, v, &f, voxel_fill);
                         mix(2);
                         f.0.iter().for_each(|&b| mix(b));
                     }

@@ -13,6 +13,7 @@ pub mod fill;
 pub mod mesh;
 pub mod ops;
 pub mod primitives;
+pub mod refine;
 pub mod spec;
 pub mod vox;
 

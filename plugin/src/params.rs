@@ -100,7 +100,8 @@ pub enum AnswerChoice {
 /// Finite element.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ElementChoice {
-    /// Trilinear with incompatible modes: fast, ~1% (the default).
+    /// Trilinear with incompatible modes: fast, ~1% on solids and flat walls, 8-11 % sharp on
+    /// curved thin walls.
     #[id = "hex8i"]
     #[name = "Fast (hex8i)"]
     Hex8i,
@@ -108,8 +109,8 @@ pub enum ElementChoice {
     #[id = "hex27"]
     #[name = "Accurate (hex27)"]
     Hex27,
-    /// Triquadratic on 2x2x2-voxel blocks: curved thin walls in tune (pairs together, pitch
-    /// within ~2 %) at about hex8i's cost.
+    /// Triquadratic on 2x2x2-voxel blocks (the default): curved thin walls in tune (pairs
+    /// within 0.2 %, frequencies within 2 % of the smooth solid) at 1.3x hex8i's DOFs.
     #[id = "hex27x2"]
     #[name = "Curved (hex27x2)"]
     Hex27x2,
@@ -463,7 +464,7 @@ impl Default for SolverGroup {
         Self {
             kind: EnumParam::new("Solver", SolverChoice::Auto),
             answers: EnumParam::new("Answers", AnswerChoice::FemOnly),
-            element: EnumParam::new("Element", ElementChoice::Hex8i),
+            element: EnumParam::new("Element", ElementChoice::Hex27x2),
             modes: IntParam::new("Modes", 60, IntRange::Linear { min: 8, max: 200 }),
         }
     }

@@ -41,7 +41,7 @@ BUNDLE, CLI = sys.argv[1], sys.argv[2]
 def modes(material, size="0.2"):
     out = subprocess.run(
         [CLI, "modes", "--shape", "bowl:d=16,wall=2", "--material", material,
-         "--size", size, "--modes", "60", "--element", "hex8i", "--json"],
+         "--size", size, "--modes", "60", "--element", "hex27x2", "--json"],
         check=True, capture_output=True, text=True).stdout
     return np.array([m["freq_hz"] for m in json.loads(out)["modes"]])
 

@@ -150,10 +150,13 @@ impl AudioEngine {
     /// reference of the "pitch" key mapping. Weights are the modes' energies at the last
     /// strike's hit point (equal before the first strike). Never allocates.
     ///
-    /// (A pitch-mode strike first makes the forces its own hit's.)
+    /// (A pitch-mode strike first makes the forces its own hit's.) The partials count whatever
+    /// the sample rate: a small object whose own modes all lie above Nyquist still has its
+    /// pitch, and a key transposes them down to where they play (at 22.05 kHz a 2 cm steel
+    /// bowl rang nothing in pitch mode, and the key's pitch depended on the rate).
     pub fn fundamental_hz(&self) -> Option<f64> {
         let obj = self.object.as_ref()?;
-        let partials = own_size_partials(&self.voicing, obj, self.sample_rate_hz)
+        let partials = own_size_partials(&self.voicing, obj, f64::INFINITY)
             .map(|(f, force)| (f, force * force));
         super::pitch::cluster_pitch_hz(partials)
     }
@@ -291,9 +294,17 @@ impl AudioEngine {
             return;
         }
         let h = self.voicing.voxel_size_m(obj.extent, 1.0);
-        let sum: f64 = own_size_partials(&self.voicing, obj, self.sample_rate_hz)
-            .map(|(f, force)| self.voicing.modal_gain(force, h, f).abs())
-            .sum();
+        let summed = |rate: f64| -> f64 {
+            own_size_partials(&self.voicing, obj, rate)
+                .map(|(f, force)| self.voicing.modal_gain(force, h, f).abs())
+                .sum()
+        };
+        // An object that rings only above Nyquist at its own size (heard through the pitch
+        // mapping, transposed down) is levelled by all its partials.
+        let mut sum = summed(self.sample_rate_hz);
+        if sum == 0.0 {
+            sum = summed(f64::INFINITY);
+        }
         if sum.is_finite() && sum > 0.0 {
             self.level_scale = super::voicing::NORMALISED_PEAK / sum;
         }

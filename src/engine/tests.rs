@@ -402,6 +402,55 @@ fn a_fundamental_pitch_puts_the_lowest_mode_on_the_note() {
 }
 
 #[test]
+fn a_small_object_plays_its_key_at_any_sample_rate() {
+    // A 3 cm steel bar rings above 24 kHz at its own size (its lowest mode near 30 kHz): at
+    // 22.05 and 48 kHz none of its own partials is below Nyquist. The "pitch" mapping must
+    // still put its fundamental on the key, the same at every rate (it was silent below 64
+    // kHz: the pitch reference counted only the partials playable at the object's own size),
+    // at the same level.
+    let (mut tunings, mut levels) = (Vec::new(), Vec::new());
+    for rate in [96000.0, 48000.0, 22050.0] {
+        let mut voicing = steel();
+        voicing.size_m = 0.03;
+        let (mut audio, control) = Engine::start(
+            rate,
+            EngineConfig::default(),
+            voicing,
+            vec![Box::new(FemSolver)],
+        )
+        .unwrap();
+        control.request(request(bar(24), 30));
+        assert!(control.wait_idle(Duration::from_secs(60)));
+        let g4 = TimedEvent {
+            offset: 0,
+            event: Event::Strike {
+                key: 67,
+                pitch: Pitch::Fundamental(392.0),
+                velocity: 1.0,
+                hit: None,
+                hardness_s: None,
+            },
+        };
+        let out = render(&mut audio, 4096, &[g4]);
+        levels.push(rms(&out));
+        tunings.push(audio.voice_tunings(67)[0].0);
+    }
+    // Within 1e-5 (0.02 cents): Rayleigh damping's d^2 / 2 w^2 between the damped and the
+    // natural frequency changes with the size the key plays (1.4e-6 here).
+    for f0 in &tunings {
+        assert!((f0 / 392.0 - 1.0).abs() < 1e-5, "{tunings:?}");
+    }
+    // As loud at every rate: the same modes below 11 kHz ring, and the level reference is
+    // the same (a factor of 2 allows for the few modes culled at the lower rates).
+    for level in &levels {
+        assert!(
+            *level > 0.5 * levels[0] && *level < 2.0 * levels[0],
+            "{levels:?}"
+        );
+    }
+}
+
+#[test]
 fn the_spectrum_view_lists_what_the_offline_voicing_plays() {
     // Truth: ModeBasis::mode_set for the same material, size and hit (impulse strike). The
     // view's frequencies and decays equal it to rounding (1e-9 relative); its amplitudes are

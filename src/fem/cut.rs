@@ -29,16 +29,18 @@ pub const CUT_BATCH: usize = 64;
 /// matrix positive definite on its non-rigid motions.
 pub const EMPTY_SUBCELL_FLOOR: f64 = 1e-3;
 
-/// Sub-cells per axis the FEM integrates a partial voxel of `kind` over, chosen by measurement
-/// (the lowest mode pair of `bowl:d=16,wall=2` and `bowl:d=32,wall=2`, glass; ARCHITECTURE.md,
-/// "Partial voxels"): hex27's split falls from 1.2 % (2) to 0.14 % (4) to 0.00 % (8), and its
-/// frequency error against the smooth reference from 2.4 % to 0.9 % to 0.2 %; 4 is the stored
-/// resolution. Hex8 with incompatible modes is best at 2 (split 0.74 % / 0.37 %; 1.6 % / 1.0 %
-/// at 4, 1.9 % / 1.2 % at 8: its bubbles follow the lattice, so the finer the cut geometry,
-/// the more its lattice anisotropy shows), and so is plain hex8.
+/// Sub-cells per voxel axis the FEM integrates a partial voxel of `kind` over, chosen by
+/// measurement (the lowest mode pair of `bowl:d=16,wall=2` and `bowl:d=32,wall=2`, glass, and
+/// their frequencies against the smooth reference; ARCHITECTURE.md, "Partial voxels"). The
+/// quadratic elements: 8, the stored 4 refined by the fill's plane in each cut sub-cell
+/// ([`crate::shape::refine`]; hex27's fundamental on the 16-voxel bowl is 2.4 / 0.9 / 0.2 %
+/// sharp at 2 / 4 / 8, and hex27x2's worst frequency on the 32-voxel bowl 1.86 % at 4, 0.96 %
+/// refined to 8). Hex8 with incompatible modes is best at 2 (split 0.74 % / 0.37 %; 1.6 % /
+/// 1.0 % at 4, 1.9 % / 1.2 % at 8: its bubbles follow the lattice, so the finer the cut
+/// geometry, the more its lattice anisotropy shows), and so is plain hex8.
 pub fn subcells_per_axis(kind: ElementKind) -> usize {
     match kind {
-        ElementKind::Hex27 | ElementKind::Hex27Blocks => 4,
+        ElementKind::Hex27 | ElementKind::Hex27Blocks => crate::shape::refine::REFINED_PER_AXIS,
         ElementKind::Hex8 | ElementKind::Hex8Incompatible => 2,
     }
 }

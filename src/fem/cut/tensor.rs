@@ -14,7 +14,11 @@
 //! `k`, differentiated where `k` is `i` (the first) or `j` (the second). Contracting one axis
 //! at a time costs `s^3 9 + s^2 81 + s 729` multiply-adds (4.8 k for `s = 4`) per integral,
 //! seven integrals per element (six derivative pairs and the mass): 25x fewer than the table
-//! (12 us per element on one core of this machine, against 46 us with the table).
+//! (12 us per element on one core of this machine, against 46 us with the table). The x
+//! contraction, the largest term, depends only on the x table, of which the seven integrals
+//! use three, and a row of sub-cells filled alike (a full or empty voxel's) contracts to one
+//! weight times the table's row sum: what keeps hex27x2's 16 sub-cells per axis (2 voxels of
+//! refined 8^3, `crate::shape::refine`) affordable.
 //! The stiffness follows from the derivative integrals `I^{ij}(a, b)` with Lamé's constants:
 //! `K(3a+c, 3b+d) = lambda I^{cd}(a, b) + mu I^{dc}(a, b) + mu delta_cd sum_l I^{ll}(a, b)`,
 //! which is `int B^T D B` for isotropic `D` written out.
@@ -46,6 +50,8 @@ pub struct Hex27Subcells {
     /// g^(q) dx` over sub-cell `c` of the unit interval (`x = (xi + 1) / 2`, so
     /// `d/dx = 2 d/dxi`); the same on every axis.
     table: [[Vec<[f64; P]>; 2]; 2],
+    /// Each table summed over the sub-cells (a whole axis of constant fill).
+    row_sums: [[[f64; P]; 2]; 2],
     /// `(pair_index(a, b), pair_index(b, a))` for every node pair, `a` major.
     pairs: Vec<(u16, u16)>,
     lambda: f64,
@@ -57,8 +63,8 @@ pub struct Hex27Subcells {
 pub struct TensorScratch {
     /// The weights `chi`, x fastest.
     weights: Vec<f64>,
-    /// After contracting x: `[c3][c2][pair_x]`.
-    t1: Vec<[f64; P]>,
+    /// After contracting x, for each of the three x tables: `[c3][c2][pair_x]`.
+    t1: [Vec<[f64; P]>; 3],
     /// After contracting y: `[c3][pair_y][pair_x]`.
     t2: Vec<[[f64; P]; P]>,
     /// The seven integrals, `[pair_z][pair_y][pair_x]` each: I^xx, I^yy, I^zz, I^xy, I^yz,
@@ -101,9 +107,19 @@ impl Hex27Subcells {
                 (pair_index(a, b) as u16, pair_index(b, a) as u16)
             })
             .collect();
+        let row_sums = table.each_ref().map(|row| {
+            row.each_ref().map(|cells| {
+                let mut sum = [0.0; P];
+                for c in cells {
+                    sum.iter_mut().zip(c).for_each(|(s, v)| *s += v);
+                }
+                sum
+            })
+        });
         Self {
             per_axis,
             table,
+            row_sums,
             pairs,
             lambda: nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
             mu: 1.0 / (2.0 * (1.0 + nu)),
@@ -115,7 +131,7 @@ impl Hex27Subcells {
         let s = self.per_axis;
         TensorScratch {
             weights: vec![0.0; s * s * s],
-            t1: vec![[0.0; P]; s * s],
+            t1: std::array::from_fn(|_| vec![[0.0; P]; s * s]),
             t2: vec![[[0.0; P]; P]; s],
             integrals: vec![[[[0.0; P]; P]; P]; 7],
         }
@@ -175,18 +191,33 @@ impl Hex27Subcells {
         // (derivative axis of the first factor, of the second), 3 = none.
         const PATTERNS: [(usize, usize); 7] =
             [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2), (3, 3)];
-        for (slot, &(i, j)) in PATTERNS.iter().enumerate() {
-            let axis = |k: usize| &self.table[(k == i) as usize][(k == j) as usize];
-            let (ax, ay, az) = (axis(0), axis(1), axis(2));
-            // Contract x: t1[c3 s + c2] = sum_c1 w[c1 + s (c2 + s c3)] ax[c1].
-            for (row, t) in scratch.weights.chunks_exact(s).zip(scratch.t1.iter_mut()) {
+        // The x contraction depends only on the x table, `table[p][q]` with `(p, q)` one of
+        // (0, 0), (1, 0), (1, 1) (i <= j in every pattern): three contractions serve the
+        // seven integrals. A row of sub-cells filled alike (a full or empty voxel's, or a
+        // block's) contracts to its weight times the table's row sum.
+        const X_TABLES: [(usize, usize); 3] = [(0, 0), (1, 0), (1, 1)];
+        for (t1, &(p, q)) in scratch.t1.iter_mut().zip(&X_TABLES) {
+            let ax = &self.table[p][q];
+            let sum = &self.row_sums[p][q];
+            for (row, t) in scratch.weights.chunks_exact(s).zip(t1.iter_mut()) {
+                if row.iter().all(|&w| w == row[0]) {
+                    let w = row[0];
+                    t.iter_mut().zip(sum).for_each(|(t, a)| *t = w * a);
+                    continue;
+                }
                 *t = [0.0; P];
                 for (w, a) in row.iter().zip(ax) {
                     t.iter_mut().zip(a).for_each(|(t, a)| *t += w * a);
                 }
             }
+        }
+        for (slot, &(i, j)) in PATTERNS.iter().enumerate() {
+            let axis = |k: usize| &self.table[(k == i) as usize][(k == j) as usize];
+            let (ay, az) = (axis(1), axis(2));
+            let x_key = ((0 == i) as usize, (0 == j) as usize);
+            let t1 = &scratch.t1[X_TABLES.iter().position(|&k| k == x_key).expect("x table")];
             // Contract y: t2[c3][py][px] = sum_c2 ay[c2][py] t1[c3 s + c2][px].
-            for (t1, t2) in scratch.t1.chunks_exact(s).zip(scratch.t2.iter_mut()) {
+            for (t1, t2) in t1.chunks_exact(s).zip(scratch.t2.iter_mut()) {
                 let t2 = t2.as_flattened_mut();
                 t2.fill(0.0);
                 for (t, a) in t1.iter().zip(ay) {
