@@ -448,8 +448,8 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     let rows: Vec<Vec<String>> = lines
         .map(|l| l.split(',').map(str::to_string).collect())
         .collect();
-    // 2 shapes x 2 resolutions x 5 (element, solver) runs.
-    assert_eq!(rows.len(), 20);
+    // 2 shapes x 2 resolutions x 6 (element, solver) runs.
+    assert_eq!(rows.len(), 24);
     let error = |shape: &str, n: &str, element: &str| -> f64 {
         rows.iter()
             .find(|r| r[0] == shape && r[1] == n && r[2] == element && r[3] == "lanczos")

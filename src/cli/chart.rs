@@ -159,6 +159,7 @@ pub fn sweep(
         (ElementKind::Hex8, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex8Incompatible, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex8Incompatible, SolverKind::Lobpcg, 1e-6),
+        (ElementKind::Hex27Blocks, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex27, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex27, SolverKind::Lobpcg, 1e-6),
     ];
@@ -328,6 +329,7 @@ fn colour_of(element: &str) -> RGBColor {
         "hex8" => RGBColor(214, 39, 40),
         "hex8i" => RGBColor(31, 119, 180),
         "hex27" => RGBColor(44, 160, 44),
+        "hex27x2" => RGBColor(148, 103, 189),
         _ => RGBColor(120, 120, 120),
     }
 }

@@ -49,9 +49,12 @@ fn enum_combo<T: Enum + PartialEq + Copy + 'static>(
     ui.horizontal(|ui| {
         ui.label(label);
         let current = param.value();
+        // Truncated to its width: a long choice ("Curved (hex27x2)") must not widen a narrow
+        // side panel into the 3D view.
         egui::ComboBox::from_id_salt(label)
             .selected_text(T::variants()[current.to_index()])
             .width(90.0)
+            .truncate()
             .show_ui(ui, |ui| {
                 for (i, name) in T::variants().iter().enumerate() {
                     let v = T::from_index(i);
