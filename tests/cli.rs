@@ -482,7 +482,7 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("21 runs"));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("25 runs"));
     assert_eq!(
         &std::fs::read(replot.join("chart.png")).unwrap()[..4],
         b"\x89PNG"
@@ -503,7 +503,7 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("line 22") && err.contains("field 7"), "{err}");
+    assert!(err.contains("line 26") && err.contains("field 7"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(!bad.join("chart.png").exists());
 }
