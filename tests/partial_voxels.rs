@@ -147,8 +147,8 @@ fn partial_voxels_hold_the_true_volume() {
 #[test]
 fn the_default_bowl_rings_true_with_quadratic_elements() {
     // The bounds on the 16-voxel bowl: lowest 10 frequencies within 2 % of the
-    // smooth reference, the lowest pair split under 0.5 %. Measured: hex27 +0.9 % worst, split
-    // 0.13 %. The default element (hex8i) is reported beside it and held to its measured
+    // smooth reference, the lowest pair split under 0.5 %. Measured: hex27 +0.33 % worst, split
+    // 0.014 % (8^3 refined sub-cells; 4^3 gave +1.15 % and 0.13 %). The default element (hex8i) is reported beside it and held to its measured
     // state: +7.6 % (its bubbles follow the lattice; the staircase was -7.4 %), split 0.74 %
     // (staircase 3.6 %).
     let spec = "bowl:d=16,wall=2";

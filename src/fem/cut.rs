@@ -60,7 +60,7 @@ enum Integrals {
     /// product per batch; the table is small).
     Table(Box<SubcellTable>),
     /// hex27: sum factorisation on the 1D sub-cell integrals ([`tensor`]).
-    Tensor(tensor::Hex27Subcells),
+    Tensor(Box<tensor::Hex27Subcells>),
 }
 
 /// Every sub-cell's matrices, one column per sub-cell, packed: only the upper triangle of a
@@ -105,7 +105,7 @@ impl CutElement {
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);
         let integrals = if kind.order() == 2 {
-            Integrals::Tensor(tensor::Hex27Subcells::new(per_axis, nu))
+            Integrals::Tensor(Box::new(tensor::Hex27Subcells::new(per_axis, nu)))
         } else {
             Integrals::Table(Box::new(SubcellTable::new(kind, nu, per_axis)))
         };

@@ -154,7 +154,7 @@ mod tests {
 
     /// The refined fill of the partial voxel `voxel` of a shape given by `sdf`.
     fn refine(sdf: impl Fn(f64, f64, f64) -> f64, dims: [usize; 3], voxel: [usize; 3]) -> Vec<f64> {
-        let grid = VoxelGrid::from_sdf(dims, 1.0, &sdf).unwrap();
+        let grid = VoxelGrid::from_sdf(dims, 1.0, sdf).unwrap();
         let VoxelFill::Partial(fill) =
             grid.fill_at(voxel[0] as isize, voxel[1] as isize, voxel[2] as isize)
         else {
@@ -173,9 +173,8 @@ mod tests {
         // worst where the plane cuts one). Spreading each 4^3 sub-cell's fill evenly over its
         // children instead is off by up to 1/2 in a child the plane cuts near its edge; the
         // reconstruction must be within 0.2 in every child and twice as close on average.
-        let n = [0.3, 0.5, 0.81];
-        let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) as f64;
-        let norm = norm.sqrt();
+        let n: [f64; 3] = [0.3, 0.5, 0.81];
+        let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let sdf = |x: f64, y: f64, z: f64| {
             (n[0] * (x - 1.5) + n[1] * (y - 1.5) + n[2] * (z - 1.47)) / norm
         };
@@ -183,7 +182,7 @@ mod tests {
         let r = REFINED_PER_AXIS;
         let samples = 8usize;
         let (mut worst, mut total, mut spread_total) = (0.0f64, 0.0, 0.0);
-        let grid = VoxelGrid::from_sdf([3, 3, 3], 1.0, &sdf).unwrap();
+        let grid = VoxelGrid::from_sdf([3, 3, 3], 1.0, sdf).unwrap();
         let VoxelFill::Partial(stored) = grid.fill_at(1, 1, 1) else {
             panic!("partial")
         };
@@ -224,7 +223,7 @@ mod tests {
         let sdf = |x: f64, y: f64, z: f64| {
             ((x - 4.0).powi(2) + (y - 4.0).powi(2) + (z - 4.0).powi(2)).sqrt() - 3.3
         };
-        let grid = VoxelGrid::from_sdf([8, 8, 8], 1.0, &sdf).unwrap();
+        let grid = VoxelGrid::from_sdf([8, 8, 8], 1.0, sdf).unwrap();
         let mut checked = 0;
         for (i, fill) in grid.partial_voxels() {
             let v = crate::shape::lattice_coords(i, grid.dims());
