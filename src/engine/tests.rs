@@ -372,30 +372,41 @@ fn normalised_strikes_peak_near_the_target_level() {
     }
 }
 
-#[test]
-fn a_fundamental_pitch_puts_the_lowest_mode_on_the_note() {
-    // The "pitch" mapping: A4 scales the bar so that its lowest mode rings at 440 Hz, resolved
-    // in the same block the object arrives in (the first strike after a solve is not lost).
-    let (mut audio, control) = Engine::start(
-        FS,
+/// An engine at `rate` with a solved 24-voxel bar (30 modes); the solve is not yet received
+/// by the audio side (the first block takes it).
+fn solved_bar(rate: f64, voicing: Voicing) -> AudioEngine {
+    let (audio, control) = Engine::start(
+        rate,
         EngineConfig::default(),
-        steel(),
+        voicing,
         vec![Box::new(FemSolver)],
     )
     .unwrap();
     control.request(request(bar(24), 30));
     assert!(control.wait_idle(Duration::from_secs(60)));
-    let a4 = TimedEvent {
+    audio
+}
+
+/// A full-velocity strike of `key` in the "pitch" mapping, its fundamental at `hz`.
+fn pitched_strike(key: u8, hz: f64) -> TimedEvent {
+    TimedEvent {
         offset: 0,
         event: Event::Strike {
-            key: 69,
-            pitch: Pitch::Fundamental(440.0),
+            key,
+            pitch: Pitch::Fundamental(hz),
             velocity: 1.0,
             hit: None,
             hardness_s: None,
         },
-    };
-    render(&mut audio, 64, &[a4]);
+    }
+}
+
+#[test]
+fn a_fundamental_pitch_puts_the_lowest_mode_on_the_note() {
+    // The "pitch" mapping: A4 scales the bar so that its lowest mode rings at 440 Hz, resolved
+    // in the same block the object arrives in (the first strike after a solve is not lost).
+    let mut audio = solved_bar(FS, steel());
+    render(&mut audio, 64, &[pitched_strike(69, 440.0)]);
     let f0 = audio.voice_tunings(69)[0].0;
     // Steel's Rayleigh damping lowers the damped frequency by d^2 / 2 w^2 ~ 1e-9.
     assert!((f0 / 440.0 - 1.0).abs() < 1e-6, "{f0}");
@@ -412,26 +423,8 @@ fn a_small_object_plays_its_key_at_any_sample_rate() {
     for rate in [96000.0, 48000.0, 22050.0] {
         let mut voicing = steel();
         voicing.size_m = 0.03;
-        let (mut audio, control) = Engine::start(
-            rate,
-            EngineConfig::default(),
-            voicing,
-            vec![Box::new(FemSolver)],
-        )
-        .unwrap();
-        control.request(request(bar(24), 30));
-        assert!(control.wait_idle(Duration::from_secs(60)));
-        let g4 = TimedEvent {
-            offset: 0,
-            event: Event::Strike {
-                key: 67,
-                pitch: Pitch::Fundamental(392.0),
-                velocity: 1.0,
-                hit: None,
-                hardness_s: None,
-            },
-        };
-        let out = render(&mut audio, 4096, &[g4]);
+        let mut audio = solved_bar(rate, voicing);
+        let out = render(&mut audio, 4096, &[pitched_strike(67, 392.0)]);
         levels.push(rms(&out));
         tunings.push(audio.voice_tunings(67)[0].0);
     }
