@@ -508,23 +508,20 @@ impl ModeBasis {
             return Err(HitError::Point(hit.point_m));
         }
         let p = hit.point_m.map(|c| c / voxel_size_m);
+        let face = nearest_face(&self.surface, p).ok_or(HitError::NoSurface)?;
         let Face {
             voxel: v,
             axis,
-            side,
             normal,
-        } = nearest_face(&self.surface, p).ok_or(HitError::NoSurface)?;
+            ..
+        } = face;
         let order = self.model.kind.order();
         let others = [(axis + 1) % 3, (axis + 2) % 3];
         // The struck point on the face, and its coordinates in the element holding the face's
         // voxel (one voxel, or a block of them: then the face may cross the element's inside
         // and every node of the element can carry weight).
         let block = self.model.kind.voxels_per_element();
-        let mut q = [0.0; 3];
-        q[axis] = v[axis] as f64 + if side > 0 { 1.0 } else { 0.0 };
-        for a in others {
-            q[a] = p[a].clamp(v[a] as f64, v[a] as f64 + 1.0);
-        }
+        let q = point_on_face(&face, p);
         let cell = v.map(|c| c / block);
         let local = |a: usize| ((q[a] - (cell[a] * block) as f64) / block as f64).clamp(0.0, 1.0);
         // Lagrange shape functions along an edge: linear (hex8) or quadratic (hex27).
