@@ -32,7 +32,17 @@ import time
 
 import mido
 import numpy as np
+import pedalboard._pedalboard as pedalboard_internals
 from pedalboard import load_plugin
+
+# nice-plug exposes MIDI CCs, channel pressure and pitch bend to VST3 hosts as 16 x 130 hidden
+# parameters ("MIDI Ch. 1 CC 74", ...: how MPE reaches a VST3 plugin). pedalboard hides the
+# ones JUCE plugins name "MIDI CC ..." through this set, but not these names, and building its
+# Python wrapper of each parameter (it samples the value's text across the range) took about
+# 35 s per 2,115 parameters, twice per plugin load: most of this test's time. The plugin still
+# gets them from the host; only pedalboard's Python view skips them (checked in `main`).
+MIDI_PARAM = re.compile(r"MIDI Ch\. \d+ ")
+pedalboard_internals.PARAMETER_NAME_REGEXES_TO_IGNORE.add(MIDI_PARAM)
 
 RATE = 48000
 BUNDLE, CLI = sys.argv[1], sys.argv[2]
@@ -147,7 +157,9 @@ def nearest_error(fs, table):
 def main():
     p = load_plugin(BUNDLE)
     assert p.is_instrument, "not an instrument"
-    names = [n for n in p.parameters if not n.startswith("midi_ch_")]
+    names = list(p.parameters)
+    midi = [c.name for c in p._parameters if MIDI_PARAM.match(c.name)]
+    assert len(midi) == 16 * 130, f"{len(midi)} MIDI CC parameters, not 16 channels x 130"
     print("parameters:", ", ".join(names))
     p.key_mapping = "Positions"
     p.material = "Glass"
@@ -239,18 +251,19 @@ SOLVE_PARAMS = ("element", "modes", "solver", "answers")
 
 
 def values(p):
-    return {n: p.parameters[n].raw_value for n in p.parameters if not n.startswith("midi_ch_")}
+    return {n: param.raw_value for n, param in p.parameters.items()}
 
 
 def torture(p):
     rng = np.random.default_rng(16)
-    fuzzable = [n for n in values(p) if n not in SOLVE_PARAMS]
+    params = p.parameters
+    fuzzable = [n for n in params if n not in SOLVE_PARAMS]
     worst = 0.0
     spans = 0
     for rate in (22050, 44100, 96000, 192000):
         for block in (1, 17, 64, 512, 4096):
             for name in fuzzable:
-                p.parameters[name].raw_value = float(rng.random())
+                params[name].raw_value = float(rng.random())
             seconds = max(0.05, 2 * block / rate)
             # 4000 notes a second, random keys and velocities, with note-offs.
             count = int(4000 * seconds)
@@ -279,7 +292,7 @@ def torture(p):
     p.raw_state = state
     first = values(p)
     for name in [n for n in first if n not in SOLVE_PARAMS]:
-        p.parameters[name].raw_value = float(rng.random())
+        params[name].raw_value = float(rng.random())
     p([], duration=0.05, sample_rate=96000, num_channels=2, buffer_size=333, reset=False)
     p.raw_state = state
     again = values(p)
