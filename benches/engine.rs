@@ -7,13 +7,17 @@
 //! seconds and prints per-block time, real-time load and ringing modes. One core runs out where
 //! load reaches 1: `modes / load` from the busiest run (the cost is linear in ringing modes).
 //!
+//! With 64 strikes it also plays the same notes with per-note expression (tuning, pressure,
+//! volume) changing on every note every block, and prints the load against none (issue 15).
+//!
 //! Then the resonator effect ([`modalforge::engine::resonator`]): a 500-mode object (a
 //! made-up recording, so no solve) driven by full-scale noise, per-block time of
 //! `AudioEngine::resonate` on top of an idle `process`.
 
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    Engine, EngineConfig, Event, FemSolver, ObjectRequest, Pitch, TimedEvent, Voicing,
+    AudioEngine, Engine, EngineConfig, Event, Expression, FemSolver, ObjectRequest, Pitch,
+    TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -80,9 +84,61 @@ fn main() {
             "{strikes:>7}  {modes:>5}  {:>8.1}  {load:.3}",
             per_block * 1e6
         );
+        if strikes == 64 {
+            expression_load(&mut audio, &events, per_block);
+        }
     }
     println!("one core runs out at about {capacity:.0} ringing modes (64-sample blocks, 48 kHz)");
     resonator(voicing);
+}
+
+/// Issue 15: the same 64 notes, struck again, with per-note expression changing every block
+/// on every note (tuning, pressure and volume: 192 events a block, an MPE controller's
+/// worst case; the pressure stays light so that it does not silence modes early and make
+/// the run cheaper), against `plain_per_block`, the same notes without expression. Printed, not
+/// asserted (the goal is within 20 %).
+fn expression_load(audio: &mut AudioEngine, strikes: &[TimedEvent], plain_per_block: f64) {
+    let mut out = vec![0f32; BLOCK];
+    audio.process(
+        &mut out,
+        &[TimedEvent {
+            offset: 0,
+            event: Event::AllOff,
+        }],
+    );
+    audio.process(&mut out, strikes);
+    let blocks = (2.0 * RATE_HZ) as usize / BLOCK;
+    let mut events = Vec::with_capacity(3 * strikes.len());
+    let mut busy = Duration::ZERO;
+    for b in 0..blocks {
+        events.clear();
+        let phase = b as f64 / blocks as f64;
+        for k in 0..strikes.len() as u8 {
+            let wobble = (std::f64::consts::TAU * (4.0 * phase + k as f64 / 64.0)).sin();
+            for expression in [
+                Expression::TuningSemitones(0.5 * wobble),
+                Expression::Pressure(0.01 * (1.0 + wobble)),
+                Expression::Volume(1.0 + 0.2 * wobble),
+            ] {
+                events.push(TimedEvent {
+                    offset: (b + k as usize) % BLOCK,
+                    event: Event::Expression { key: k, expression },
+                });
+            }
+        }
+        events.sort_by_key(|e| e.offset);
+        let t = Instant::now();
+        audio.process(&mut out, &events);
+        busy += t.elapsed();
+    }
+    let per_block = busy.as_secs_f64() / blocks as f64;
+    let load = per_block / (BLOCK as f64 / RATE_HZ);
+    println!(
+        "64 notes, expression on every note every block: {:.1} us/block, load {load:.3} \
+         ({:+.1} % against none)",
+        per_block * 1e6,
+        100.0 * (per_block / plain_per_block - 1.0)
+    );
 }
 
 /// The resonator effect on 500 modes: microseconds per 64-sample block and load.

@@ -1,6 +1,7 @@
 //! The engine's audio side never allocates or frees (issue #4's wait-free contract), checked
 //! with a global allocator that counts calls made on the audio thread, while an editor thread
-//! sends shape edits that the worker solves and swaps in.
+//! sends shape edits that the worker solves and swaps in, and while 64 notes get per-note
+//! expression every block (issue 15).
 
 mod common;
 
@@ -8,8 +9,8 @@ use common::alloc::{self, Counting};
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::resonator::ResonatorSettings;
 use modalforge::engine::{
-    DampingParams, Engine, EngineConfig, Event, FemSolver, HitPoint, ObjectRequest, Pitch,
-    TimedEvent, Voicing,
+    DampingParams, Engine, EngineConfig, Event, Expression, FemSolver, HitPoint, ObjectRequest,
+    Pitch, TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -153,4 +154,70 @@ fn the_audio_thread_never_allocates_while_objects_are_edited() {
     assert_eq!(alloc::allocations(), 0, "allocations on the audio thread");
     assert_eq!(alloc::frees(), 0, "frees on the audio thread");
     assert!(control.stats().active_modes.load(Ordering::Relaxed) <= 90);
+}
+
+/// Issue 15: 64 ringing notes with per-note expression (tuning, pressure, volume) changing on
+/// every note every block, notes restruck now and then: the audio thread still allocates and
+/// frees nothing. (The load against the same notes without expression is in
+/// `cargo bench --bench engine`.)
+#[test]
+fn per_note_expression_on_64_notes_every_block_does_not_allocate() {
+    let voicing = Voicing::from_material(&Material::preset("steel").unwrap(), 0.2).unwrap();
+    let config = EngineConfig {
+        voices: 64,
+        ..EngineConfig::default()
+    };
+    let (mut audio, control) =
+        Engine::start(48000.0, config, voicing, vec![Box::new(FemSolver)]).unwrap();
+    control.request(request(12));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let mut out = vec![0f32; 64];
+    audio.process(&mut out, &[]);
+    let strike = |key: u8| TimedEvent {
+        offset: key as usize % 64,
+        event: Event::Strike {
+            key,
+            pitch: Pitch::Ratio(2f64.powf(key as f64 / 64.0 - 0.5)),
+            velocity: 1.0,
+            hit: None,
+            hardness_s: None,
+        },
+    };
+    let strikes: Vec<TimedEvent> = (0..64).map(strike).collect();
+    let mut events = Vec::with_capacity(4 * 64);
+    let (allocs, frees) = (alloc::allocations(), alloc::frees());
+    let mut loudest = 0f32;
+    for block in 0..400usize {
+        events.clear();
+        if block == 0 {
+            events.extend_from_slice(&strikes);
+        }
+        for key in 0..64u8 {
+            let wobble = ((block as f64 + key as f64) * 0.37).sin();
+            for expression in [
+                Expression::TuningSemitones(2.0 * wobble),
+                Expression::Pressure(0.5 * (1.0 + wobble)),
+                Expression::Volume(1.0 + 0.5 * wobble),
+            ] {
+                events.push(TimedEvent {
+                    offset: (block + 3 * key as usize) % 64,
+                    event: Event::Expression { key, expression },
+                });
+            }
+            if (block + key as usize).is_multiple_of(97) {
+                events.push(strike(key));
+            }
+        }
+        events.sort_by_key(|e| e.offset);
+        alloc::marked(|| audio.process(&mut out, &events));
+        assert!(out.iter().all(|x| x.is_finite()), "block {block}");
+        loudest = out.iter().fold(loudest, |m, x| m.max(x.abs()));
+    }
+    assert!(loudest > 0.0, "nothing was heard");
+    assert_eq!(
+        alloc::allocations() - allocs,
+        0,
+        "allocations on the audio thread"
+    );
+    assert_eq!(alloc::frees() - frees, 0, "frees on the audio thread");
 }

@@ -3,8 +3,9 @@
 //! mute, and expression:
 //! - per-note expressions from CLAP and VST3 hosts, always: tuning retunes the note (the object
 //!   played at another size, [`Expression::TuningSemitones`]), pressure presses on it
-//!   ([`Expression::Pressure`]), volume scales it, brightness sets the mallet of the key's next
-//!   strike (a brighter note, a shorter contact);
+//!   ([`Expression::Pressure`]), volume scales it, brightness sets the key's next strike: by
+//!   the "Brightness Moves" parameter its mallet (a brighter note, a shorter contact) or its
+//!   hit point ([`brightened_hit`]: from the centre to the edge);
 //! - MIDI channel messages, by the "MIDI Expression" parameter: "Classic", pitch bend scales
 //!   every note's damping and the mod wheel the contact time; "MPE" (lower zone), the MIDI
 //!   Polyphonic Expression specification's mapping: channel 1 is the master, whose pitch bend
@@ -16,7 +17,7 @@
 //! Where it sits: called by [`crate::ModalForge::process`] for every host event; never
 //! allocates (events go into a vector with fixed capacity).
 
-use crate::params::{HeldNote, KeyMapping, MidiExpression, ModalForgeParams};
+use crate::params::{BrightnessTarget, HeldNote, KeyMapping, MidiExpression, ModalForgeParams};
 use modalforge::engine::{AudioEngine, Event, Expression, HitPoint, Pitch, TimedEvent};
 use nice_plug::midi::{Channel, Key};
 use nice_plug::prelude::*;
@@ -42,6 +43,34 @@ const MPE_MASTER_BEND_SEMITONES: f64 = 2.0;
 const CC_BRIGHTNESS: u8 = 74;
 /// Brightness 0 to 1 moves the contact time over x4 .. x1/4 (0.5: as set).
 const BRIGHTNESS_HARDNESS_RANGE: f64 = 4.0;
+
+/// The hit point (fractions of the object's box) that `brightness` makes of the set point
+/// `set`: along the line from the top view's centre `(0.5, 0.5)` through `set`, at 0 the
+/// centre, at 0.5 `set` itself, at 1 the box's edge; linear in between, the height kept. (A
+/// plate struck at its centre rings only its symmetric modes; towards a free edge nearly all
+/// of them.) A set point at the centre moves along x.
+pub fn brightened_hit(set: [f64; 3], brightness: f64) -> [f64; 3] {
+    let b = brightness.clamp(0.0, 1.0);
+    let (dx, dy) = (set[0] - 0.5, set[1] - 0.5);
+    let from_centre = dx.hypot(dy);
+    let (ux, uy) = if from_centre > 1e-9 {
+        (dx / from_centre, dy / from_centre)
+    } else {
+        (1.0, 0.0)
+    };
+    // How far the box's edge is along (ux, uy).
+    let edge = [ux, uy]
+        .iter()
+        .filter(|u| u.abs() > 1e-12)
+        .map(|u| 0.5 / u.abs())
+        .fold(f64::INFINITY, f64::min);
+    let t = if b <= 0.5 {
+        from_centre * 2.0 * b
+    } else {
+        from_centre + (edge - from_centre) * (2.0 * b - 1.0)
+    };
+    [0.5 + ux * t, 0.5 + uy * t, set[2]]
+}
 
 /// Controller state carried between blocks.
 #[derive(Clone, Copy, Debug)]
@@ -275,13 +304,16 @@ impl KeyMap {
         engine: &AudioEngine,
     ) -> Option<Event> {
         let v = velocity.clamp(0.0, 1.0);
+        let on_mallet = params.expression.brightness.value() == BrightnessTarget::Mallet;
         // Softer presses: a longer, softer contact (up to 2x at velocity 0 with the knob at 1);
         // brightness shortens it (x1/4 at 1) or lengthens it (x4 at 0).
         let base = engine.voicing().hardness_s;
-        let hardness = base
-            * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v))
-            * BRIGHTNESS_HARDNESS_RANGE.powf(1.0 - 2.0 * brightness);
-        let (pitch, hit) = match params.play.mapping.value() {
+        let mut hardness =
+            base * (1.0 + params.strike.velocity_hardness.value() as f64 * (1.0 - v));
+        if on_mallet {
+            hardness *= BRIGHTNESS_HARDNESS_RANGE.powf(1.0 - 2.0 * brightness);
+        }
+        let (pitch, mut hit) = match params.play.mapping.value() {
             // Resolved by the engine with the object and voicing in use at the strike; the
             // key's frequency comes from the tuning (12-TET unless a Scala file is loaded).
             KeyMapping::Pitch => {
@@ -299,6 +331,13 @@ impl KeyMap {
                 }),
             ),
         };
+        if !on_mallet && brightness != 0.5 {
+            let set = hit.unwrap_or(engine.voicing().hit);
+            hit = Some(HitPoint {
+                position: brightened_hit(set.position, brightness),
+                direction: set.direction,
+            });
+        }
         Some(Event::Strike {
             key: match params.play.mapping.value() {
                 KeyMapping::Pitch => key,

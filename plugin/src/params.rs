@@ -44,6 +44,21 @@ pub enum MidiExpression {
     Mpe,
 }
 
+/// What a note's brightness (a CLAP/VST3 note expression, MPE's CC74) changes in its next
+/// strike ([`crate::keymap`]).
+#[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BrightnessTarget {
+    /// The mallet: brighter is a shorter contact (x1/4 at full), darker a longer one (x4).
+    #[id = "mallet"]
+    #[name = "Mallet"]
+    Mallet,
+    /// The hit point: from the centre of the object's box (0) through the set point (0.5) to
+    /// the box's edge (1), along the line through the set point; the height is kept.
+    #[id = "hit"]
+    #[name = "Hit Point"]
+    HitPoint,
+}
+
 /// Which damping law is used.
 #[derive(Enum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DampingChoice {
@@ -201,6 +216,9 @@ pub struct ExpressionGroup {
     /// Extra decay of a note under full pressure, 1/s.
     #[id = "pdec"]
     pub pressure_decay: FloatParam,
+    /// What brightness changes.
+    #[id = "brt"]
+    pub brightness: EnumParam<BrightnessTarget>,
 }
 
 impl Default for ExpressionGroup {
@@ -218,6 +236,7 @@ impl Default for ExpressionGroup {
                 0,
             ),
             pressure_decay: float("Pressure Damping", 40.0, skewed(1.0, 500.0), " /s", 1),
+            brightness: EnumParam::new("Brightness Moves", BrightnessTarget::Mallet),
         }
     }
 }

@@ -152,10 +152,13 @@ fn parameter_ids_are_frozen_and_hosts_see_seven_groups() {
         ("modes", "Solver"),
     ];
     // Added later, after every frozen one.
-    const ADDED: [(&str, &str); 8] = [
+    // Hosts address parameters by id (a hash of it), not by position, so a later one may
+    // join its group in the middle.
+    const ADDED: [(&str, &str); 9] = [
         ("expr", "Expression"),
         ("bendr", "Expression"),
         ("pdec", "Expression"),
+        ("brt", "Expression"),
         ("rin", "Resonator"),
         ("rmix", "Resonator"),
         ("rlow", "Resonator"),

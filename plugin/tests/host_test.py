@@ -212,8 +212,13 @@ def main():
 
     # A Scala tuning in the project (issue 15): 19-tone equal temperament, loaded as the
     # editor stores it (the persisted "tuning" field), plays every key at 19-TET: keys 67 and
-    # 79 (7 and 19 steps above middle C) within 1 cent of 261.6256 * 2^(n/19), where 12-TET
-    # would put them 256 and 0 cents elsewhere.
+    # 79 (7 and 19 steps above middle C) at 2^(n/19) times middle C's measured pitch within
+    # the issue's 0.1 cent, and within 1 cent of 261.6256 * 2^(n/19) absolutely (12-TET would
+    # put them 256 and 0 cents elsewhere). The absolute check is looser because this
+    # measurement (the audio's power centroid over the bowl's pair) and the engine's pitch
+    # reference (modal-force-weighted, ARCHITECTURE.md "The pitch a key plays") weigh the
+    # pair's two partials a little differently (their decays differ): the same +0.15 cents
+    # on every key, which the ratio to middle C cancels.
     raw = p.raw_state
     plugin_state = json.loads(state_json(raw))
     scl = "! 19edo\n19-EDO\n19\n" + "".join(f"{1200 * i / 19:.5f}\n" for i in range(1, 19))
@@ -226,8 +231,11 @@ def main():
         want = c4 * 2 ** (steps / 19)
         got = cluster_pitch(render(p, key, 6.0))
         off = 1200 * np.log2(got / want)
-        print(f"19-TET key {key}: {got:.3f} Hz, {off:+.3f} cents from {want:.3f} Hz")
+        step = 1200 * np.log2(got / pitch) - 1200 * steps / 19
+        print(f"19-TET key {key}: {got:.3f} Hz, {off:+.3f} cents from {want:.3f} Hz, "
+              f"{step:+.3f} cents from 2^({steps}/19) above middle C")
         assert abs(off) < 1.0, f"key {key} sounds {got:.3f} Hz, {off:+.3f} cents off"
+        assert abs(step) < 0.1, f"key {key} is {step:+.3f} cents off 19-TET above middle C"
     p.raw_state = raw
 
     # State round trip through the host.

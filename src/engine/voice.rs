@@ -41,6 +41,9 @@ pub(crate) struct Voice {
     pub bend: f64,
     /// Per-note pressure, 0 to 1: adds its share of the voicing's pressure decay.
     pub pressure: f64,
+    /// `bend` or `pressure` changed since the last [`Self::revoice`]: the engine re-tunes
+    /// the voice once before it next renders, however many expressions arrived.
+    pub retune_pending: bool,
     /// Per-note gain the voice is heading to, and the gain it is at (ramped per span).
     pub volume: f64,
     pub volume_now: f64,
@@ -67,6 +70,7 @@ impl Voice {
             pitch: 1.0,
             bend: 1.0,
             pressure: 0.0,
+            retune_pending: false,
             volume: 1.0,
             volume_now: 1.0,
             muted: false,
@@ -89,6 +93,7 @@ impl Voice {
         self.key = None;
         self.bend = 1.0;
         self.pressure = 0.0;
+        self.retune_pending = false;
         self.volume = 1.0;
         self.volume_now = 1.0;
         self.muted = false;
@@ -103,6 +108,7 @@ impl Voice {
     /// Re-tunes every ringing mode for `voicing` (kept phase and amplitude); modes that can no
     /// longer ring (above Nyquist, overdamped) are dropped.
     pub fn revoice(&mut self, voicing: &Voicing) {
+        self.retune_pending = false;
         let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let extra = self.extra_decay(voicing);
         let fs = self.bank.sample_rate_hz();

@@ -804,6 +804,7 @@ pub(super) fn controls(
         slider(ui, "Bend range", &p.bend_range, setter);
     }
     slider(ui, "Pressure", &p.pressure_decay, setter);
+    enum_combo(ui, "Brightness", &p.brightness, setter);
     ui.separator();
     let p = &params.resonator;
     ui.heading("Resonator").on_hover_text(

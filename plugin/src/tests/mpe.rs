@@ -26,6 +26,17 @@ fn bend(channel: u8, value: f32) -> NoteEvent<()> {
     }
 }
 
+/// A CLAP/VST3 brightness note expression on `key`.
+fn brighten(key: u8, brightness: f32) -> NoteEvent<()> {
+    NoteEvent::PolyBrightness {
+        timing: 0,
+        voice_id: VoiceID::Wildcard,
+        channel: Channel::Number(0),
+        key: Key::Number(key),
+        brightness,
+    }
+}
+
 fn engine_for(params: &ModalForgeParams) -> modalforge::engine::AudioEngine {
     let table = MaterialTable::new();
     let (engine, control) = Engine::start(
@@ -207,18 +218,7 @@ fn classic_mode_keeps_bend_on_damping_and_note_expressions_always_apply() {
     }
     // Brightness sets that key's next strike.
     let plain = hardness(&run(&mut keymap, &params, &engine, on(0, 62)));
-    run(
-        &mut keymap,
-        &params,
-        &engine,
-        NoteEvent::PolyBrightness {
-            timing: 0,
-            voice_id,
-            channel,
-            key: Key::Number(62),
-            brightness: 1.0,
-        },
-    );
+    run(&mut keymap, &params, &engine, brighten(62, 1.0));
     let bright = hardness(&run(&mut keymap, &params, &engine, on(0, 62)));
     assert!((bright / plain - 0.25).abs() < 1e-12);
 }
@@ -281,4 +281,62 @@ fn held_notes_scrape_from_note_on_to_note_off_when_asked() {
     };
     let released = run(&mut keymap, &params, &engine, off);
     assert!(matches!(released[0].event, Event::ContactEnd { key: 69 }));
+}
+
+/// "Brightness Moves: Hit Point": a note's brightness moves its next strike's hit point from
+/// the centre of the object's box (0) through the set point (0.5) to the box's edge (1), and
+/// leaves the mallet alone. Truth: the geometry of that line (the default hit point is off
+/// every symmetry line, so the line is a diagonal one).
+#[test]
+fn brightness_can_move_the_hit_point_instead_of_the_mallet() {
+    let params = ModalForgeParams::default();
+    // SAFETY: nothing else reads these parameters while the test sets them.
+    unsafe {
+        params
+            .expression
+            .brightness
+            .as_ptr()
+            ._internal_set_normalized_value(1.0);
+    }
+    assert_eq!(
+        params.expression.brightness.value(),
+        crate::params::BrightnessTarget::HitPoint
+    );
+    let engine = engine_for(&params);
+    let set = engine.voicing().hit.position;
+    let mut keymap = KeyMap::default();
+    let mut strike_at = |brightness: f32| {
+        run(&mut keymap, &params, &engine, brighten(64, brightness));
+        let events = run(&mut keymap, &params, &engine, on(0, 64));
+        let hit = match events[0].event {
+            Event::Strike { hit, .. } => hit.map(|h| h.position),
+            ref e => panic!("{e:?}"),
+        };
+        (hit.unwrap_or(set), hardness(&events))
+    };
+    let (centre, h0) = strike_at(0.0);
+    let (plain, h_half) = strike_at(0.5);
+    let (edge, h1) = strike_at(1.0);
+    let (between, _) = strike_at(0.75);
+    assert_eq!(plain, set);
+    assert!(
+        h0 == h_half && h1 == h_half,
+        "the mallet moved: {h0} {h_half} {h1}"
+    );
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+    assert!(close(centre[0], 0.5) && close(centre[1], 0.5) && close(centre[2], set[2]));
+    // On the edge: one coordinate at 0 or 1, on the ray from the centre through the set point.
+    let on_edge = [edge[0], edge[1]]
+        .iter()
+        .any(|&c| close(c, 0.0) || close(c, 1.0));
+    let cross = (edge[0] - 0.5) * (set[1] - 0.5) - (edge[1] - 0.5) * (set[0] - 0.5);
+    let along = (edge[0] - 0.5) * (set[0] - 0.5) + (edge[1] - 0.5) * (set[1] - 0.5);
+    assert!(
+        on_edge && close(cross, 0.0) && along > 0.0,
+        "{edge:?} from {set:?}"
+    );
+    // Halfway between the set point and the edge at 0.75.
+    for a in 0..2 {
+        assert!(close(between[a], 0.5 * (set[a] + edge[a])), "{between:?}");
+    }
 }
