@@ -86,11 +86,18 @@ def state_across_rates(vst3, rng):
     for d in descriptions:
         if d["name"] not in SOLVE_PARAMS:
             synth.set_parameter(d["index"], float(rng.random()))
+        # The damping law from the material (its knobs keep their random values, saved and
+        # restored like the rest): random knobs of the power law can overdamp every mode
+        # (decay above the angular frequency: no oscillation, rightly silent; mu1 5.6 and
+        # mu2 0.59 put G4's decay at 56,000 /s), and a silent instance cannot show it plays.
+        if d["name"] == "Damping":
+            synth.set_parameter(d["index"], 0.0)
     synth.add_midi_note(60, 100, 0.0, 1.0)
     engine.load_graph([(synth, [])])
     engine.render(0.05)
     indices = [d["index"] for d in descriptions]
     set_values = {i: synth.get_parameter(i) for i in indices}
+    set_texts = {i: synth.get_parameter_text(i) for i in indices}
     with tempfile.TemporaryDirectory() as tmp:
         first_path = os.path.join(tmp, "first")
         synth.save_state(first_path)
@@ -103,7 +110,13 @@ def state_across_rates(vst3, rng):
     for d in descriptions:
         i = d["index"]
         step = 1.0 / d["numSteps"] if d["isDiscrete"] or d["isBoolean"] else 1e-5
-        assert abs(first[i] - set_values[i]) <= step, (d["name"], set_values[i], first[i])
+        # The state keeps plain values as f32: at the bottom of a skewed range (normalised
+        # n -> min + range * n^4) a small n is below f32's resolution of the plain value
+        # (n = 0.0014 on the 10-2000 Hz low cut is 10.000000008 Hz, stored as 10 Hz, n = 0).
+        # There the value must read the same as the plugin displays it.
+        same = abs(first[i] - set_values[i]) <= step
+        assert same or instance[1].get_parameter_text(i) == set_texts[i], (
+            d["name"], set_values[i], first[i], set_texts[i])
     return len(indices)
 
 
