@@ -183,7 +183,9 @@ impl AudioEngine {
     }
 
     /// Renders `out.len()` samples (overwriting `out`), applying `events` (sorted by offset,
-    /// offsets within `out`) sample-accurately. Never allocates, frees, locks or blocks.
+    /// offsets within `out`): strikes, mutes and contacts sample-accurately, expressions at the
+    /// start of the span they fall in (at most 64 samples early; see the loop). Never
+    /// allocates, frees, locks or blocks.
     pub fn process(&mut self, out: &mut [f32], events: &[TimedEvent]) {
         let started = Instant::now();
         let arrived = self.receive();
