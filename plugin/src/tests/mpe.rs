@@ -85,16 +85,15 @@ fn hardness(events: &[TimedEvent]) -> f64 {
     }
 }
 
+/// Sets an enum parameter to its last choice, as a host would (normalised 1).
+fn choose_last<T: Enum + PartialEq>(param: &EnumParam<T>) {
+    // SAFETY: each test owns its parameters; nothing else reads them while one is set.
+    unsafe { param.as_ptr()._internal_set_normalized_value(1.0) };
+}
+
 fn mpe_params() -> ModalForgeParams {
     let params = ModalForgeParams::default();
-    // SAFETY: nothing else reads these parameters while the test sets them.
-    unsafe {
-        params
-            .expression
-            .midi
-            .as_ptr()
-            ._internal_set_normalized_value(1.0);
-    }
+    choose_last(&params.expression.midi);
     assert_eq!(params.expression.midi.value(), MidiExpression::Mpe);
     params
 }
@@ -233,14 +232,7 @@ fn held_notes_scrape_from_note_on_to_note_off_when_asked() {
     let mut keymap = KeyMap::default();
     let struck = run(&mut keymap, &params, &engine, on(0, 69));
     assert!(matches!(struck[0].event, Event::Strike { key: 69, .. }));
-    // SAFETY: nothing else reads these parameters while the test sets them.
-    unsafe {
-        params
-            .resonator
-            .held
-            .as_ptr()
-            ._internal_set_normalized_value(1.0);
-    }
+    choose_last(&params.resonator.held);
     assert_eq!(
         params.resonator.held.value(),
         crate::params::HeldNote::Scrape
@@ -290,14 +282,7 @@ fn held_notes_scrape_from_note_on_to_note_off_when_asked() {
 #[test]
 fn brightness_can_move_the_hit_point_instead_of_the_mallet() {
     let params = ModalForgeParams::default();
-    // SAFETY: nothing else reads these parameters while the test sets them.
-    unsafe {
-        params
-            .expression
-            .brightness
-            .as_ptr()
-            ._internal_set_normalized_value(1.0);
-    }
+    choose_last(&params.expression.brightness);
     assert_eq!(
         params.expression.brightness.value(),
         crate::params::BrightnessTarget::HitPoint
