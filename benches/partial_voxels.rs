@@ -10,7 +10,9 @@
 //! `cargo bench --bench partial_voxels` (all shapes, hex8i, hex27x2 and hex27; hex27 only up to
 //! 150k DOFs);
 //! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly [ELEMENT]`
-//! repeats the 32-voxel bowl's assembly (hex8i by default; for a profiler).
+//! times assembly alone on the two bowls, partial voxels against the staircase of the same
+//! bowl (issue 19's "assembly within 2x"), for ELEMENT or all three; `--repeat N` repeats each
+//! measurement N times (for a profiler).
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
@@ -43,23 +45,7 @@ fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let only_hex8i = std::env::args().any(|a| a == "--hex8i");
     if std::env::args().any(|a| a == "--assembly") {
-        // Assembly only, repeated (for a profiler): the 32-voxel bowl, partial voxels, hex8i
-        // (or the element named after it).
-        let kind = std::env::args()
-            .skip_while(|a| a != "--assembly")
-            .nth(1)
-            .and_then(|name| <ElementKind as clap::ValueEnum>::from_str(&name, true).ok())
-            .unwrap_or(ElementKind::Hex8Incompatible);
-        let ShapeSpec::Primitive { shape, .. } = "bowl:d=32,wall=2".parse::<ShapeSpec>().unwrap()
-        else {
-            unreachable!()
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("raster");
-        let (ms, dofs) = median_assembly_ms(&grid, kind);
-        for _ in 0..8 {
-            median_assembly_ms(&grid, kind);
-        }
-        println!("{kind} assembly {ms:.1} ms, {dofs} DOFs");
+        assembly_ratios();
         return;
     }
     println!(
@@ -111,6 +97,52 @@ fn main() {
                     kind.to_string()
                 );
             }
+        }
+    }
+}
+
+/// `--assembly [ELEMENT] [--repeat N]`: the two bowls' assembly, partial voxels over staircase.
+fn assembly_ratios() {
+    let args: Vec<String> = std::env::args().collect();
+    let after = |flag: &str| {
+        args.iter()
+            .skip_while(|a| *a != flag)
+            .nth(1)
+            .map(String::as_str)
+    };
+    let kinds: Vec<ElementKind> = match after("--assembly")
+        .and_then(|name| <ElementKind as clap::ValueEnum>::from_str(name, true).ok())
+    {
+        Some(kind) => vec![kind],
+        None => vec![
+            ElementKind::Hex8Incompatible,
+            ElementKind::Hex27Blocks,
+            ElementKind::Hex27,
+        ],
+    };
+    let repeat: usize = after("--repeat").and_then(|n| n.parse().ok()).unwrap_or(1);
+    println!(
+        "{:<18} {:<8} {:>13} {:>11} {:>6}",
+        "shape", "element", "staircase ms", "partial ms", "ratio"
+    );
+    for spec in ["bowl:d=16,wall=2", "bowl:d=32,wall=2"] {
+        let ShapeSpec::Primitive { shape, .. } = spec.parse::<ShapeSpec>().expect("spec") else {
+            unreachable!()
+        };
+        let staircase = shape.rasterize_staircase(1.0, 1.0).expect("raster");
+        let partial = shape.rasterize(1.0, 1.0).expect("raster");
+        for &kind in &kinds {
+            let mut time = |grid: &VoxelGrid| {
+                (0..repeat)
+                    .map(|_| median_assembly_ms(grid, kind).0)
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let (s, p) = (time(&staircase), time(&partial));
+            println!(
+                "{spec:<18} {:<8} {s:>13.1} {p:>11.1} {:>6.2}",
+                kind.to_string(),
+                p / s
+            );
         }
     }
 }

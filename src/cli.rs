@@ -75,6 +75,10 @@ pub struct DatasetArgs {
     /// Threads [default: every core].
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+    /// Finite element the labels are solved with (hex27x2 is the plugin's; the directory's
+    /// labels.toml records it, and a resumed run must use the same).
+    #[arg(long, value_name = "NAME", default_value_t = modalforge::fem::ElementKind::Hex27Blocks)]
+    pub element: modalforge::fem::ElementKind,
 }
 
 /// Options of `modalforge modes`.
@@ -228,6 +232,7 @@ fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
         args.held_out,
         args.seed,
         threads,
+        args.element,
     )
     .map_err(|source| CliError::Io {
         action: "write",

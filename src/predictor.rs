@@ -47,6 +47,11 @@ const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/modenet.bpk")
 /// The shipped pitch index (training shapes' band frequencies), compiled in.
 const SHIPPED_PITCH_INDEX: &[u8] = include_bytes!("../assets/predictor/pitch-index.bin");
 
+/// The element the shipped weights' and pitch index's training labels were solved with
+/// (`assets/predictor/README.md`): what their figures are measured against.
+pub const SHIPPED_LABEL_ELEMENT: crate::fem::ElementKind =
+    crate::fem::ElementKind::Hex8Incompatible;
+
 /// The shipped pitch index, read once per process.
 pub fn shipped_pitch_index() -> Result<Arc<PitchIndex>, PitchIndexError> {
     static INDEX: std::sync::OnceLock<Result<Arc<PitchIndex>, PitchIndexError>> =

@@ -5,7 +5,7 @@
 mod common;
 
 use modalforge::predictor::dataset::{self, Record};
-use modalforge::predictor::{metrics, Predictor};
+use modalforge::predictor::{metrics, Predictor, SHIPPED_LABEL_ELEMENT};
 
 /// Held-out objects scored (a plate with holes, a handled cup, alternately).
 const OBJECTS: usize = 4;
@@ -27,7 +27,7 @@ fn the_shipped_weights_predict_held_out_objects_within_bounds() {
     let mut scores = Vec::new();
     for index in 0..OBJECTS {
         let (family, grid) = dataset::object(1, true, index);
-        let truth = Record::label(family, grid.clone()).expect("FEM labels");
+        let truth = Record::label(family, grid.clone(), SHIPPED_LABEL_ELEMENT).expect("FEM labels");
         // The objects are 16-30 voxels long, within the training sizes: the network sees them
         // as it saw its training input (no resample), as `predictor eval` does.
         let p = predictor.predict(&grid).expect("predicts");

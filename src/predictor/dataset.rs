@@ -5,8 +5,8 @@
 //! by `(seed, split, index)` ([`object`]), so a dataset is reproducible from its seed, objects
 //! can be made in any order on any number of threads, and a run that stops resumes where it
 //! was (finished records are kept). Labels come from the product's own FEM path (partial
-//! voxels, the default element hex8i, every mode up to the top band at the reference),
-//! encoded as [`BandEncoding`].
+//! voxels, the chosen element, every mode up to the top band at the reference), encoded as
+//! [`BandEncoding`]; the element is named in the directory's [`MANIFEST`].
 //!
 //! The held-out split holds whole shape families training never sees ([`Family::held_out`]):
 //! plates with holes and objects with handles.
@@ -367,16 +367,20 @@ fn read_bits(bytes: &[u8], n: usize) -> Vec<bool> {
 }
 
 impl Record {
-    /// Labels an object by FEM (the product's path: partial voxels, hex8i, every mode up to
-    /// the top band at the reference).
-    pub fn label(family: Family, grid: VoxelGrid) -> Result<Self, LabelError> {
+    /// Labels an object by FEM (the product's path: partial voxels, `element`, every mode up
+    /// to the top band at the reference).
+    pub fn label(
+        family: Family,
+        grid: VoxelGrid,
+        element: ElementKind,
+    ) -> Result<Self, LabelError> {
         let options = EigenOptions {
             count: ModeCount::Below(bands::reference_eigenvalue(bands::HIGH_HZ)),
             ..EigenOptions::default()
         };
         let basis = ModeBasis::solve(
             &grid,
-            ElementKind::Hex8Incompatible,
+            element,
             REFERENCE_POISSON,
             SolverKind::Auto,
             &options,
@@ -478,6 +482,37 @@ pub struct Summary {
     pub failed: usize,
 }
 
+/// The file in a dataset's directory that names the element its labels were solved with
+/// (one line, `element = "hex27x2"`). A directory without one holds hex8i labels (datasets
+/// made before the element was a choice).
+pub const MANIFEST: &str = "labels.toml";
+
+/// The element a dataset's labels were solved with: its [`MANIFEST`], or hex8i where there is
+/// none. An unreadable or unknown manifest is an error naming the file.
+pub fn labelled_element(dir: &Path) -> std::io::Result<ElementKind> {
+    use clap::ValueEnum;
+    let path = dir.join(MANIFEST);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(ElementKind::Hex8Incompatible)
+        }
+        Err(e) => return Err(e),
+    };
+    let bad = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "{}: expected one line `element = \"NAME\"` (hex8, hex8i, hex27 or hex27x2)",
+                path.display()
+            ),
+        )
+    };
+    let table: toml::Table = text.parse().map_err(|_| bad())?;
+    let name = table.get("element").and_then(|v| v.as_str()).ok_or_else(bad)?;
+    ElementKind::from_str(name, false).map_err(|_| bad())
+}
+
 /// The record file of object `index`.
 pub fn record_path(out: &Path, held_out: bool, index: usize) -> std::path::PathBuf {
     let split = if held_out { "heldout" } else { "train" };
@@ -485,17 +520,37 @@ pub fn record_path(out: &Path, held_out: bool, index: usize) -> std::path::PathB
 }
 
 /// Makes `count` training objects and `held_out` held-out ones under `out` (`train/`,
-/// `heldout/`), labelling them on `threads` threads; records already present are kept, so a
-/// stopped run resumes. Prints progress and an ETA to stderr.
+/// `heldout/`), labelling them with `element` on `threads` threads; records already present
+/// are kept, so a stopped run resumes. A directory whose labels were solved with another
+/// element ([`labelled_element`]) is refused rather than mixed. Prints progress and an ETA to
+/// stderr.
 pub fn generate(
     out: &Path,
     count: usize,
     held_out: usize,
     seed: u64,
     threads: usize,
+    element: ElementKind,
 ) -> std::io::Result<Summary> {
+    let has_records = ["train", "heldout"]
+        .iter()
+        .any(|split| std::fs::read_dir(out.join(split)).is_ok_and(|mut d| d.next().is_some()));
+    if has_records || out.join(MANIFEST).exists() {
+        let found = labelled_element(out)?;
+        if found != element {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "{} holds labels solved with {found}, not {element}: choose another \
+                     directory or --element {found}",
+                    out.display()
+                ),
+            ));
+        }
+    }
     std::fs::create_dir_all(out.join("train"))?;
     std::fs::create_dir_all(out.join("heldout"))?;
+    std::fs::write(out.join(MANIFEST), format!("element = \"{element}\"\n"))?;
     let jobs: Vec<(bool, usize)> = (0..count)
         .map(|i| (false, i))
         .chain((0..held_out).map(|i| (true, i)))
@@ -521,7 +576,7 @@ pub fn generate(
                     continue;
                 }
                 let (family, grid) = object(seed, held, index);
-                match Record::label(family, grid) {
+                match Record::label(family, grid, element) {
                     Ok(record) => {
                         // Written under a temporary name, then renamed: a killed run never
                         // leaves a half record that a resumed run would keep.
@@ -592,7 +647,7 @@ mod tests {
         }
         .rasterize(1.0, 1.0)
         .unwrap();
-        let record = Record::label(Family::Shell, grid).unwrap();
+        let record = Record::label(Family::Shell, grid, ElementKind::Hex8Incompatible).unwrap();
         assert!(record.labels.mask.iter().any(|&m| m));
         let bytes = record.encode();
         let back = Record::decode(&bytes).unwrap();
