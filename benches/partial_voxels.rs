@@ -132,7 +132,7 @@ fn assembly_ratios() {
         let staircase = shape.rasterize_staircase(1.0, 1.0).expect("raster");
         let partial = shape.rasterize(1.0, 1.0).expect("raster");
         for &kind in &kinds {
-            let mut time = |grid: &VoxelGrid| {
+            let time = |grid: &VoxelGrid| {
                 (0..repeat)
                     .map(|_| median_assembly_ms(grid, kind).0)
                     .fold(f64::INFINITY, f64::min)

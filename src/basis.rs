@@ -18,7 +18,7 @@
 //! 7, 9).
 
 use crate::eigen::{self, EigenError, EigenOptions, EigenSolution, SolverKind};
-use crate::fem::{ElementKind, FemModel};
+use crate::fem::{ElementCache, ElementKind, FemModel};
 use crate::material::{DampedMode, Material};
 use crate::modes::{ModeError, ModeSet};
 use crate::shape::lattice_index;
@@ -279,8 +279,21 @@ impl ModeBasis {
         solver: SolverKind,
         options: &EigenOptions,
     ) -> Result<Self, BasisError> {
+        Self::solve_cached(grid, element, poisson_ratio, solver, options, None)
+    }
+
+    /// [`ModeBasis::solve`], assembling with the cut elements kept in `cache`
+    /// ([`FemModel::assemble_cached`]): the interactive chain's exact answer to an edit.
+    pub fn solve_cached(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        solver: SolverKind,
+        options: &EigenOptions,
+        cache: Option<&mut ElementCache>,
+    ) -> Result<Self, BasisError> {
         let t = std::time::Instant::now();
-        let model = FemModel::assemble(grid, element, poisson_ratio)?;
+        let model = FemModel::assemble_cached(grid, element, poisson_ratio, cache)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
         let solution = eigen::solve(&model, solver, options)?;
         Ok(Self::from_parts(grid, model, solution, assemble_ms))
@@ -320,19 +333,22 @@ impl ModeBasis {
     /// The instant approximate answer to an edit of `previous` ([`eigen::warm::ritz`]): the
     /// previous modes carried to the new shape and re-balanced by Rayleigh-Ritz, without a
     /// solve. `None` when the shapes are not comparable (see [`ModeBasis::solve_warm`]).
+    /// `cache`, when given, keeps cut element matrices between edits
+    /// ([`FemModel::assemble_cached`]).
     pub fn carried_ritz(
         grid: &VoxelGrid,
         element: ElementKind,
         poisson_ratio: f64,
         count: usize,
         previous: &ModeBasis,
+        cache: Option<&mut ElementCache>,
     ) -> Option<Result<Self, BasisError>> {
         let old = &previous.model;
         if old.kind != element || old.poisson_ratio != poisson_ratio {
             return None;
         }
         let t = std::time::Instant::now();
-        let model = match FemModel::assemble(grid, element, poisson_ratio) {
+        let model = match FemModel::assemble_cached(grid, element, poisson_ratio, cache) {
             Ok(m) => m,
             Err(e) => return Some(Err(e.into())),
         };

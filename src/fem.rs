@@ -10,12 +10,14 @@
 //! times the reference ones (the exact form of Deep-Modal's scaling laws, Jin et al. 2020, eq.
 //! 10-12; [`crate::basis`] applies them).
 
+pub mod cache;
 pub mod cut;
 pub mod element;
 pub mod ordering;
 pub mod sparse;
 
 use crate::shape::{lattice_coords, lattice_index, VoxelFill};
+pub use cache::ElementCache;
 pub use element::{ElementKind, UnitElement};
 use sparse::{BlockPattern, Blocks};
 
@@ -64,6 +66,18 @@ impl FemModel {
         grid: &VoxelGrid,
         kind: ElementKind,
         poisson_ratio: f64,
+    ) -> Result<Self, ShapeError> {
+        Self::assemble_cached(grid, kind, poisson_ratio, None)
+    }
+
+    /// [`FemModel::assemble`], taking the matrices of cut elements whose fills it has seen
+    /// from `cache` and storing the ones it integrates there ([`cache`]): the same model, to
+    /// rounding, in a fraction of the time when `grid` is an edit of a recently assembled one.
+    pub fn assemble_cached(
+        grid: &VoxelGrid,
+        kind: ElementKind,
+        poisson_ratio: f64,
+        mut cache: Option<&mut ElementCache>,
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
@@ -129,57 +143,101 @@ impl FemModel {
         let mut slots = vec![0usize; nloc * nloc];
         let ndof = 3 * nloc;
         let mut scaled = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
-        let mut flush =
-            |pending: &mut Vec<usize>, fills: &[f64], k: &mut [[f64; 9]], m: &mut [[f64; 9]]| {
-                if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
-                    let batch: Vec<&[f64]> =
-                        fills.chunks_exact(subcells).take(pending.len()).collect();
-                    cut.matrices_batch(&batch, scratch, |j, ke, me| {
-                        let e = pending[j];
-                        let nodes = &elements[e * nloc..(e + 1) * nloc];
-                        if block == 1 {
-                            sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
-                        } else {
-                            let (ks, ms) = &mut scaled;
-                            ks.iter_mut().zip(ke).for_each(|(s, v)| *s = v * k_scale);
-                            ms.iter_mut().zip(me).for_each(|(s, v)| *s = v * m_scale);
-                            sparse::add_element(&pattern, nodes, ks, ms, k, m, &mut slots);
-                        }
-                    });
-                }
-                pending.clear();
-            };
+        // A refined fill reads a one-voxel halo, which is then part of an element's input.
+        let halo = per_voxel == crate::shape::refine::REFINED_PER_AXIS;
+        if let Some(cache) = cache.as_deref_mut() {
+            cache.begin(kind, poisson_ratio);
+        }
+        let mut key = Vec::new();
+        let mut pending_keys: Vec<Vec<u8>> = Vec::new();
+        let mut flush = |pending: &mut Vec<usize>,
+                         fills: &[f64],
+                         k: &mut [[f64; 9]],
+                         m: &mut [[f64; 9]],
+                         mut cache: Option<&mut ElementCache>,
+                         keys: &[Vec<u8>]| {
+            if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
+                let batch: Vec<&[f64]> = fills.chunks_exact(subcells).take(pending.len()).collect();
+                cut.matrices_batch(&batch, scratch, |j, ke, me| {
+                    let e = pending[j];
+                    let nodes = &elements[e * nloc..(e + 1) * nloc];
+                    let (ke, me) = if block == 1 {
+                        (ke, me)
+                    } else {
+                        let (ks, ms) = &mut scaled;
+                        ks.iter_mut().zip(ke).for_each(|(s, v)| *s = v * k_scale);
+                        ms.iter_mut().zip(me).for_each(|(s, v)| *s = v * m_scale);
+                        (&ks[..], &ms[..])
+                    };
+                    sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
+                    if let Some(cache) = cache.as_deref_mut() {
+                        cache.store(&keys[j], nloc, ke, me);
+                    }
+                });
+            }
+            pending.clear();
+        };
         let mut unit_slots = vec![0usize; nloc * nloc];
         let mut cell_fills = Vec::with_capacity(if block > 1 { voxels.len() } else { 0 });
         for (e, v) in voxels.iter().enumerate() {
-            let cut_fill = if block == 1 {
+            let nodes = &elements[e * nloc..(e + 1) * nloc];
+            let partial = if block == 1 {
                 grid.subcell_fill(grid.index(v[0], v[1], v[2]))
                     .filter(|_| cut.is_some())
-                    .map(|fill| {
-                        let at = pending.len() * subcells;
-                        voxel_subcells(grid, *v, fill, &mut fills[at..at + subcells]);
-                    })
-                    .is_some()
             } else {
-                let at = pending.len() * subcells;
-                let out = &mut fills[at..at + subcells];
-                let (full, fingerprint) =
-                    gather_block_fill(grid, *v, block, per_voxel, &mut voxel_fill, out);
+                None
+            };
+            let is_cut = if block == 1 {
+                partial.is_some()
+            } else {
+                let (full, fingerprint) = block_state(grid, *v, block);
                 cell_fills.push(fingerprint);
                 !full
             };
-            if cut_fill {
-                pending.push(e);
-                if pending.len() == cut::CUT_BATCH {
-                    flush(&mut pending, &fills, &mut k, &mut m);
-                }
-            } else {
-                let nodes = &elements[e * nloc..(e + 1) * nloc];
+            if !is_cut {
                 let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
                 sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
+                continue;
+            }
+            if let Some(cache) = cache.as_deref_mut() {
+                ElementCache::key_into(grid, *v, block, halo, &mut key);
+                if cache.add_stored(&key, &pattern, nodes, &mut k, &mut m, &mut unit_slots) {
+                    continue;
+                }
+                if pending_keys.len() <= pending.len() {
+                    pending_keys.push(Vec::new());
+                }
+                pending_keys[pending.len()].clone_from(&key);
+            }
+            let at = pending.len() * subcells;
+            let out = &mut fills[at..at + subcells];
+            match partial {
+                Some(fill) => voxel_subcells(grid, *v, fill, out),
+                None => gather_block_fill(grid, *v, block, per_voxel, &mut voxel_fill, out),
+            }
+            pending.push(e);
+            if pending.len() == cut::CUT_BATCH {
+                flush(
+                    &mut pending,
+                    &fills,
+                    &mut k,
+                    &mut m,
+                    cache.as_deref_mut(),
+                    &pending_keys,
+                );
             }
         }
-        flush(&mut pending, &fills, &mut k, &mut m);
+        flush(
+            &mut pending,
+            &fills,
+            &mut k,
+            &mut m,
+            cache.as_deref_mut(),
+            &pending_keys,
+        );
+        if let Some(cache) = cache {
+            cache.finish();
+        }
         Ok(FemModel {
             kind,
             poisson_ratio,
@@ -271,20 +329,10 @@ pub fn element_cells(grid: &VoxelGrid, kind: ElementKind) -> Vec<[usize; 3]> {
         .collect()
 }
 
-/// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
-/// `block^3` voxels from `cell * block` into `out`: a full voxel's sub-cells are 1, an empty or
-/// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
-/// per axis. Returns whether every voxel of the block is full (the unit element applies), and a
-/// fingerprint of the voxels' fills (FNV-1a over their states and sub-cell bytes).
-fn gather_block_fill(
-    grid: &VoxelGrid,
-    cell: [usize; 3],
-    block: usize,
-    per_voxel: usize,
-    voxel_fill: &mut [f64],
-    out: &mut [f64],
-) -> (bool, u64) {
-    let side = block * per_voxel;
+/// Whether every voxel of the `block^3` voxels from `cell * block` is full (the unit element
+/// applies), and a fingerprint of the voxels' fills (FNV-1a over their states and sub-cell
+/// bytes).
+fn block_state(grid: &VoxelGrid, cell: [usize; 3], block: usize) -> (bool, u64) {
     let mut full = true;
     let mut fingerprint: u64 = 0xcbf2_9ce4_8422_2325;
     let mut mix = |byte: u8| {
@@ -293,28 +341,52 @@ fn gather_block_fill(
     for oz in 0..block {
         for oy in 0..block {
             for ox in 0..block {
-                let v = [
-                    cell[0] * block + ox,
-                    cell[1] * block + oy,
-                    cell[2] * block + oz,
-                ];
-                let fill = grid.fill_at(v[0] as isize, v[1] as isize, v[2] as isize);
+                let fill = grid.fill_at(
+                    (cell[0] * block + ox) as isize,
+                    (cell[1] * block + oy) as isize,
+                    (cell[2] * block + oz) as isize,
+                );
                 match fill {
-                    VoxelFill::Empty => {
-                        voxel_fill.fill(0.0);
-                        mix(0);
-                    }
-                    VoxelFill::Full => {
-                        voxel_fill.fill(1.0);
-                        mix(1);
-                    }
+                    VoxelFill::Empty => mix(0),
+                    VoxelFill::Full => mix(1),
                     VoxelFill::Partial(f) => {
-                        voxel_subcells(grid, v, &f, voxel_fill);
                         mix(2);
                         f.0.iter().for_each(|&b| mix(b));
                     }
                 }
                 full &= fill == VoxelFill::Full;
+            }
+        }
+    }
+    (full, fingerprint)
+}
+
+/// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
+/// `block^3` voxels from `cell * block` into `out`: a full voxel's sub-cells are 1, an empty or
+/// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
+/// per axis (or refined, [`voxel_subcells`]).
+fn gather_block_fill(
+    grid: &VoxelGrid,
+    cell: [usize; 3],
+    block: usize,
+    per_voxel: usize,
+    voxel_fill: &mut [f64],
+    out: &mut [f64],
+) {
+    let side = block * per_voxel;
+    for oz in 0..block {
+        for oy in 0..block {
+            for ox in 0..block {
+                let v = [
+                    cell[0] * block + ox,
+                    cell[1] * block + oy,
+                    cell[2] * block + oz,
+                ];
+                match grid.fill_at(v[0] as isize, v[1] as isize, v[2] as isize) {
+                    VoxelFill::Empty => voxel_fill.fill(0.0),
+                    VoxelFill::Full => voxel_fill.fill(1.0),
+                    VoxelFill::Partial(f) => voxel_subcells(grid, v, &f, voxel_fill),
+                }
                 for sz in 0..per_voxel {
                     for sy in 0..per_voxel {
                         let from = per_voxel * (sy + per_voxel * sz);
@@ -327,7 +399,6 @@ fn gather_block_fill(
             }
         }
     }
-    (full, fingerprint)
 }
 
 /// Voxels along the longest side that resolve `fmax_hz` (see ARCHITECTURE.md, resolution).

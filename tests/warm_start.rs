@@ -81,7 +81,7 @@ fn transfer_to_the_same_mesh_is_the_identity() {
 fn carried_answer_of_an_unchanged_shape_is_exact() {
     let grid = bowl();
     let b = cold(&grid);
-    let r = ModeBasis::carried_ritz(&grid, ElementKind::Hex8Incompatible, NU, MODES, &b)
+    let r = ModeBasis::carried_ritz(&grid, ElementKind::Hex8Incompatible, NU, MODES, &b, None)
         .expect("comparable")
         .expect("carried");
     // Rayleigh-Ritz on the exact eigenvectors returns their eigenvalues (to roundoff).
@@ -101,7 +101,7 @@ fn alignment_follows_a_moved_origin() {
     }
     let model = FemModel::assemble(&moved, ElementKind::Hex8Incompatible, NU).unwrap();
     assert_eq!(warm::align(&b.model, &model), ([-1, 0, -1], grid.count()));
-    let r = ModeBasis::carried_ritz(&moved, ElementKind::Hex8Incompatible, NU, MODES, &b)
+    let r = ModeBasis::carried_ritz(&moved, ElementKind::Hex8Incompatible, NU, MODES, &b, None)
         .expect("comparable")
         .expect("carried");
     assert!(worst_relative(&frequencies(&r), &frequencies(&b)) < 1e-9);
@@ -139,7 +139,7 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
             assert!(err < 1e-6, "{kind}: warm vs cold: {err:.1e}");
             assert!(warm.solution.residuals.iter().all(|&r| r <= 1e-6));
             // The instant answer: close, not exact.
-            let carried = ModeBasis::carried_ritz(&grid, kind, NU, MODES, &previous)
+            let carried = ModeBasis::carried_ritz(&grid, kind, NU, MODES, &previous, None)
                 .expect("comparable")
                 .expect("carried");
             let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
@@ -183,9 +183,10 @@ fn parts_touching_along_an_edge_keep_their_seven_rigid_modes() {
     assert_eq!(before.solution.rigid_vectors.ncols(), 7);
     grid.set(0, 0, 3, false);
     let reference = solve(&grid);
-    let carried = ModeBasis::carried_ritz(&grid, ElementKind::Hex8Incompatible, NU, 20, &before)
-        .expect("comparable")
-        .expect("a carried answer");
+    let carried =
+        ModeBasis::carried_ritz(&grid, ElementKind::Hex8Incompatible, NU, 20, &before, None)
+            .expect("comparable")
+            .expect("a carried answer");
     assert_eq!(carried.solution.rigid_modes, 7);
     let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
     assert!(err < 3e-3, "carried vs cold: {err:.1e}");

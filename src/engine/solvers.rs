@@ -20,6 +20,7 @@ use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::eigen::ModeCount;
+use crate::fem::ElementCache;
 use crate::predictor::Predictor;
 use crate::shape::{ops, VoxelGrid};
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -49,6 +50,15 @@ pub const CARRIED_EXPECTED_ERROR: f64 = 1e-2;
 
 /// The last exact basis, shared by the chain.
 type Shared = Arc<Mutex<Option<Arc<ModeBasis>>>>;
+
+/// The cut element matrices of recent assemblies, shared by the chain's FEM answers: a
+/// stroke's carried answer, its exact solve and the next stroke's reuse every cut element the
+/// stroke did not touch ([`crate::fem::cache`]).
+type SharedElements = Arc<Mutex<ElementCache>>;
+
+fn elements(shared: &SharedElements) -> std::sync::MutexGuard<'_, ElementCache> {
+    shared.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// Predicted cold solve time of `grid` (ms, one core) for `count` modes.
 pub fn predicted_cold_ms(grid: &VoxelGrid, count: ModeCount) -> f64 {
@@ -135,6 +145,7 @@ fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
 /// The exact FEM answer; it keeps the last one for the chain's faster answers to start from.
 pub struct IncrementalFemSolver {
     last: Shared,
+    elements: SharedElements,
     answers: AnswerSwitch,
 }
 
@@ -143,6 +154,7 @@ impl IncrementalFemSolver {
     pub fn new() -> Self {
         IncrementalFemSolver {
             last: Arc::new(Mutex::new(None)),
+            elements: SharedElements::default(),
             answers: AnswerSwitch::default(),
         }
     }
@@ -173,7 +185,14 @@ impl ModeSolver for IncrementalFemSolver {
         // factor: measured slower on most objects of `cargo bench --bench interactive`. The
         // exact answer is solved cold; the instant answer to a stroke comes from
         // `CarriedRitzSolver`.
-        let basis = ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)?;
+        let basis = ModeBasis::solve_cached(
+            &r.grid,
+            r.element,
+            r.poisson_ratio,
+            r.solver,
+            &r.options,
+            Some(&mut elements(&self.elements)),
+        )?;
         *lock(&self.last) = Some(Arc::new(basis.clone()));
         Ok(ObjectModes::Fem(basis))
     }
@@ -189,6 +208,7 @@ fn count_of(r: &ObjectRequest) -> usize {
 /// The progressive first answer: the object at half resolution (see the module docs).
 pub struct CoarseFemSolver {
     last: Shared,
+    elements: SharedElements,
     answers: AnswerSwitch,
 }
 
@@ -216,8 +236,15 @@ impl ModeSolver for CoarseFemSolver {
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         let grid = coarse_grid(&r.grid).ok_or(BasisError::NoCoarseGrid)?;
-        ModeBasis::solve(&grid, r.element, r.poisson_ratio, r.solver, &r.options)
-            .map(ObjectModes::Fem)
+        ModeBasis::solve_cached(
+            &grid,
+            r.element,
+            r.poisson_ratio,
+            r.solver,
+            &r.options,
+            Some(&mut elements(&self.elements)),
+        )
+        .map(ObjectModes::Fem)
     }
 }
 
@@ -225,6 +252,7 @@ impl ModeSolver for CoarseFemSolver {
 /// re-balanced by Rayleigh-Ritz ([`ModeBasis::carried_ritz`]), while the exact solve runs.
 pub struct CarriedRitzSolver {
     last: Shared,
+    elements: SharedElements,
     answers: AnswerSwitch,
 }
 
@@ -243,9 +271,16 @@ impl ModeSolver for CarriedRitzSolver {
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         let previous = lock(&self.last).clone().ok_or(BasisError::NoPrevious)?;
-        ModeBasis::carried_ritz(&r.grid, r.element, r.poisson_ratio, count_of(r), &previous)
-            .unwrap_or(Err(BasisError::NoPrevious))
-            .map(ObjectModes::Fem)
+        ModeBasis::carried_ritz(
+            &r.grid,
+            r.element,
+            r.poisson_ratio,
+            count_of(r),
+            &previous,
+            Some(&mut elements(&self.elements)),
+        )
+        .unwrap_or(Err(BasisError::NoPrevious))
+        .map(ObjectModes::Fem)
     }
 }
 
@@ -337,6 +372,7 @@ pub fn interactive_solvers(
 ) -> Vec<Box<dyn ModeSolver>> {
     let exact = IncrementalFemSolver {
         last: Arc::new(Mutex::new(None)),
+        elements: SharedElements::default(),
         answers: answers.clone(),
     };
     let first: Box<dyn ModeSolver> = match predictor {
@@ -347,11 +383,13 @@ pub fn interactive_solvers(
         }),
         None => Box::new(CoarseFemSolver {
             last: exact.last.clone(),
+            elements: exact.elements.clone(),
             answers: answers.clone(),
         }),
     };
     let carried = CarriedRitzSolver {
         last: exact.last.clone(),
+        elements: exact.elements.clone(),
         answers,
     };
     vec![first, Box::new(carried), Box::new(exact)]

@@ -557,6 +557,7 @@ fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
         Material::preset("steel").unwrap().poisson_ratio,
         20,
         FemSolver.solve(&request(grid, 20)).unwrap().fem().unwrap(),
+        None,
     )
     .unwrap()
     .unwrap();

@@ -90,13 +90,7 @@ pub fn add_element(
 ) {
     let nloc = nodes.len();
     let ndof = 3 * nloc;
-    for (i, &a) in nodes.iter().enumerate() {
-        for (j, &b) in nodes.iter().enumerate() {
-            slots[i * nloc + j] = pattern
-                .find(a as usize, b)
-                .expect("pattern holds every element pair");
-        }
-    }
+    find_slots(pattern, nodes, slots);
     for i in 0..nloc {
         for j in 0..nloc {
             let s = slots[i * nloc + j];
@@ -107,6 +101,19 @@ pub fn add_element(
                     m[s][3 * c + d] += me[off];
                 }
             }
+        }
+    }
+}
+
+/// The block of every node pair of an element on `pattern`, into `slots` (`slots[i n + j]` for
+/// the pair `(nodes[i], nodes[j])`).
+pub fn find_slots(pattern: &BlockPattern, nodes: &[u32], slots: &mut [usize]) {
+    let n = nodes.len();
+    for (i, &a) in nodes.iter().enumerate() {
+        for (j, &b) in nodes.iter().enumerate() {
+            slots[i * n + j] = pattern
+                .find(a as usize, b)
+                .expect("pattern holds every element pair");
         }
     }
 }

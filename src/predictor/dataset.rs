@@ -509,7 +509,10 @@ pub fn labelled_element(dir: &Path) -> std::io::Result<ElementKind> {
         )
     };
     let table: toml::Table = text.parse().map_err(|_| bad())?;
-    let name = table.get("element").and_then(|v| v.as_str()).ok_or_else(bad)?;
+    let name = table
+        .get("element")
+        .and_then(|v| v.as_str())
+        .ok_or_else(bad)?;
     ElementKind::from_str(name, false).map_err(|_| bad())
 }
 

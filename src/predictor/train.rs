@@ -398,7 +398,10 @@ mod tests {
         let plate = VoxelGrid::from_fn([24, 20, 2], 1.0, |_, _, _| true).unwrap();
         let labelled: Vec<Record> = [bar, plate]
             .into_iter()
-            .map(|g| Record::label(Family::Solid, g, crate::fem::ElementKind::Hex8Incompatible).expect("labels"))
+            .map(|g| {
+                Record::label(Family::Solid, g, crate::fem::ElementKind::Hex8Incompatible)
+                    .expect("labels")
+            })
             .collect();
         let records: Vec<(&Record, Perm)> = labelled.iter().map(|r| (r, PERMS[0])).collect();
         assert!(records
