@@ -9,7 +9,7 @@
 
 use modalforge::basis::ModeBasis;
 use modalforge::eigen::warm;
-use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
+use modalforge::eigen::{EigenOptions, ModeCount, Operators, SolverKind};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::{ops, VoxelGrid};
@@ -145,6 +145,18 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
             let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
             eprintln!("{kind}: carried vs cold: {err:.1e}");
             assert!(err < 1e-3, "{kind}: carried vs cold: {err:.1e}");
+            // Its residuals come from the products Rayleigh-Ritz already made (and the patch's
+            // rows): the same as recomputed from K and M, to rounding relative to residuals
+            // of 1e-5 to 1e-2 (a missing or mis-transposed patch term is of their own size).
+            let sol = &carried.solution;
+            let explicit = Operators::new(&carried.model)
+                .block_residuals(&sol.eigenvalues, sol.vectors.as_ref());
+            for (got, want) in sol.residuals.iter().zip(&explicit) {
+                assert!(
+                    (got - want).abs() <= 1e-6 * want,
+                    "{kind}: residual {got:e} vs explicit {want:e}"
+                );
+            }
             previous = warm;
         }
     }
