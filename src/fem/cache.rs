@@ -35,7 +35,7 @@ pub const KEEP_ASSEMBLIES: u64 = 4;
 pub const MAX_BYTES: usize = 128 << 20;
 
 /// One cut element's matrices, compactly.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 struct Entry {
     /// Stiffness 3x3 blocks (row-major) of the node pairs `a <= b`, row by row.
     k: Box<[[f64; 9]]>,
@@ -52,7 +52,7 @@ impl Entry {
 }
 
 /// Cut element matrices of one element kind and Poisson's ratio, by their fills.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct ElementCache {
     /// What the entries were integrated for (a change clears them).
     integrand: Option<(ElementKind, u64)>,
