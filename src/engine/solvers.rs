@@ -394,3 +394,60 @@ pub fn interactive_solvers(
     };
     vec![first, Box::new(carried), Box::new(exact)]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eigen::{EigenOptions, SolverKind};
+    use crate::fem::ElementKind;
+    use crate::shape::primitives::Primitive;
+
+    #[test]
+    fn a_strokes_answers_reuse_the_cut_elements_of_the_last_exact_answer() {
+        // The chain's wiring: the carried and exact answers to a stroke assemble from the
+        // cache the previous exact answer filled, re-integrating only what the stroke touched
+        // (at most the 27 elements whose input holds the voxel; `fem::cache` checks that the
+        // cached model equals the uncached one).
+        let grid = Primitive::Bowl {
+            diameter: 12.0,
+            wall: 2.0,
+        }
+        .rasterize(1.0, 1.0)
+        .unwrap();
+        let request = |grid: VoxelGrid| ObjectRequest {
+            grid,
+            element: ElementKind::Hex27Blocks,
+            poisson_ratio: 0.24,
+            solver: SolverKind::Auto,
+            options: EigenOptions {
+                count: ModeCount::First(10),
+                ..EigenOptions::default()
+            },
+            recording: None,
+        };
+        let mut exact = IncrementalFemSolver::new();
+        let mut carried = CarriedRitzSolver {
+            last: exact.last.clone(),
+            elements: exact.elements.clone(),
+            answers: AnswerSwitch::default(),
+        };
+        exact.solve(&request(grid.clone())).unwrap();
+        let cold = elements(&exact.elements).stats();
+        assert!(cold.misses > 50, "{cold:?}");
+        let (i, _) = grid.partial_voxels().next().unwrap();
+        let v = crate::shape::lattice_coords(i, grid.dims());
+        let mut edited = grid.clone();
+        edited.set(v[0], v[1], v[2], true);
+        let stroke = request(edited);
+        assert!(carried.applies(&stroke));
+        carried.solve(&stroke).unwrap();
+        let after = elements(&exact.elements).stats();
+        assert!(after.misses <= 27, "{after:?}");
+        assert!(
+            after.hits + 27 >= cold.hits + cold.misses,
+            "{after:?} after {cold:?}"
+        );
+        exact.solve(&stroke).unwrap();
+        assert_eq!(elements(&exact.elements).stats().misses, 0);
+    }
+}
