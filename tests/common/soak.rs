@@ -229,6 +229,11 @@ fn request(grid: VoxelGrid) -> ObjectRequest {
     }
 }
 
+/// Requests of the first object at the start and the end, before the heap is measured: each
+/// assembles it once, and the element cache keeps what the last `KEEP_ASSEMBLIES` assemblies
+/// used, so after this many it holds the first object's cut elements only, at both ends.
+const SETTLE_REQUESTS: u64 = modalforge::fem::cache::KEEP_ASSEMBLIES;
+
 /// Lets the worker finish while the host keeps calling `process` (which takes delivered
 /// objects from the ring), then one more block so the last answer is the one playing.
 fn settle(
@@ -274,7 +279,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
     settle(&mut audio, &control, &mut out);
     // Warm-up: a dozen edits of every kind fill the caches that live as long as the engine
     // (the solver threads' matrix-product workspaces, the warm-start state); then the first
-    // object again, twice, whose heap is the baseline.
+    // object again (`SETTLE_REQUESTS` times), whose heap is the baseline.
     let mut warm_rng = SplitMix64::new(seed ^ 0x5EED);
     let mut warm = first.clone();
     for k in 0..12 {
@@ -286,7 +291,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
         control.request(request(warm.clone()));
         settle(&mut audio, &control, &mut out);
     }
-    for _ in 0..2 {
+    for _ in 0..SETTLE_REQUESTS {
         control.request(request(first.clone()));
         settle(&mut audio, &control, &mut out);
     }
@@ -432,9 +437,10 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
         && status.state == SolveState::Idle
         && audio.object_generation().map(|(g, _)| g)
             == status.playing.as_ref().map(|p| p.generation);
-    // Memory: the first object again, twice, so that the worker's caches (the last answers,
-    // kept for warm starts) hold the same objects as at the start.
-    for _ in 0..2 {
+    // Memory: the first object again, as at the start, so that the worker's caches (the last
+    // answers, kept for warm starts, and the cut elements of the last assemblies) hold the
+    // same objects as at the start.
+    for _ in 0..SETTLE_REQUESTS {
         control.request(request(first.clone()));
         settle(&mut audio, &control, &mut out);
     }
