@@ -32,7 +32,7 @@ pub const KEEP_ASSEMBLIES: u64 = 4;
 
 /// Most bytes of element matrices kept (beyond it, new elements are integrated but not kept):
 /// a 32^3 object's cut hex27x2 blocks take about 40 MB.
-pub const MAX_BYTES: usize = 128 << 20;
+pub const MAX_BYTES: usize = 64 << 20;
 
 /// One cut element's matrices, compactly.
 #[derive(Clone, Debug)]
