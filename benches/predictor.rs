@@ -76,7 +76,11 @@ fn edit_to_first_sound() {
             48_000.0,
             EngineConfig::default(),
             voicing,
-            interactive_solvers(Some(predictor.clone()), answers.clone()),
+            interactive_solvers(
+                Some(predictor.clone()),
+                answers.clone(),
+                &modalforge::engine::KeptAnswers::new(),
+            ),
         )
         .expect("engine");
         let base = grid(spec);

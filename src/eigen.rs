@@ -108,7 +108,7 @@ impl SolverKind {
 }
 
 /// Solver settings.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EigenOptions {
     /// How many modes.
     pub count: ModeCount,

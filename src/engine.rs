@@ -19,6 +19,7 @@
 //! audio thread while objects are edited and solved). The expensive shape solve (worker) and
 //! the cheap voicing (audio thread, [`voicing`]) are separate types.
 
+pub mod answers;
 mod audio;
 mod object;
 pub mod pitch;
@@ -30,6 +31,7 @@ mod voice;
 pub mod voicing;
 mod worker;
 
+pub use answers::KeptAnswers;
 pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::{ObjectModes, SolvedObject};
 pub use solvers::{

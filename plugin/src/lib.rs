@@ -26,8 +26,8 @@ use keymap::KeyMap;
 use materials::MaterialTable;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
-    AnswerSwitch, Answers, AudioEngine, Engine, EngineConfig, EngineControl, Event, ObjectRequest,
-    Pitch, TimedEvent,
+    AnswerSwitch, Answers, AudioEngine, Engine, EngineConfig, EngineControl, Event, KeptAnswers,
+    ObjectRequest, Pitch, TimedEvent,
 };
 use modalforge::fem::ElementKind;
 use modalforge::predictor::Predictor;
@@ -100,6 +100,13 @@ impl Default for ModalForge {
             answers: AnswerSwitch::default(),
         }
     }
+}
+
+/// The exact answers every instance in this process shares ([`KeptAnswers`]): a second
+/// instance with the same object, an undo or a preset chosen again plays at once.
+fn kept_answers() -> &'static KeptAnswers {
+    static KEPT: std::sync::OnceLock<KeptAnswers> = std::sync::OnceLock::new();
+    KEPT.get_or_init(KeptAnswers::new)
 }
 
 /// The request the parameters and the persisted object describe, or `None` if the object is
@@ -258,7 +265,11 @@ impl Plugin for ModalForge {
             rate,
             EngineConfig::default(),
             voicing,
-            modalforge::engine::interactive_solvers(self.predictor.clone(), self.answers.clone()),
+            modalforge::engine::interactive_solvers(
+                self.predictor.clone(),
+                self.answers.clone(),
+                kept_answers(),
+            ),
         );
         match started {
             Ok((audio, control)) => {

@@ -16,10 +16,11 @@ use std::sync::Arc;
 /// unit, whichever solver made them.
 #[derive(Debug)]
 pub enum ObjectModes {
-    /// Finite elements: exact to the solver tolerance.
-    Fem(ModeBasis),
+    /// Finite elements: exact to the solver tolerance (shared: the chain keeps the last exact
+    /// answer and [`super::answers`] the recent ones).
+    Fem(Arc<ModeBasis>),
     /// The neural predictor: one mode per predicted band, in milliseconds.
-    Predicted(PredictedObject),
+    Predicted(Box<PredictedObject>),
     /// A recording's own modes ([`super::recorded`]): played as recorded.
     Recorded(RecordedObject),
 }
@@ -73,7 +74,7 @@ impl ObjectModes {
     /// The FEM basis, when FEM made these modes.
     pub fn fem(&self) -> Option<&ModeBasis> {
         match self {
-            ObjectModes::Fem(b) => Some(b),
+            ObjectModes::Fem(b) => Some(b.as_ref()),
             ObjectModes::Predicted(_) | ObjectModes::Recorded(_) => None,
         }
     }

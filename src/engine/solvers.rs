@@ -16,6 +16,7 @@
 //! All three share the last exact basis (a coarse or carried answer never becomes the start of
 //! another).
 
+use super::answers::KeptAnswers;
 use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
@@ -146,6 +147,7 @@ fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
 pub struct IncrementalFemSolver {
     last: Shared,
     elements: SharedElements,
+    kept: KeptAnswers,
     answers: AnswerSwitch,
 }
 
@@ -155,6 +157,7 @@ impl IncrementalFemSolver {
         IncrementalFemSolver {
             last: Arc::new(Mutex::new(None)),
             elements: SharedElements::default(),
+            kept: KeptAnswers::new(),
             answers: AnswerSwitch::default(),
         }
     }
@@ -185,15 +188,22 @@ impl ModeSolver for IncrementalFemSolver {
         // factor: measured slower on most objects of `cargo bench --bench interactive`. The
         // exact answer is solved cold; the instant answer to a stroke comes from
         // `CarriedRitzSolver`.
-        let basis = ModeBasis::solve_cached(
-            &r.grid,
-            r.element,
-            r.poisson_ratio,
-            r.solver,
-            &r.options,
-            Some(&mut elements(&self.elements)),
-        )?;
-        *lock(&self.last) = Some(Arc::new(basis.clone()));
+        let basis = match self.kept.find(r) {
+            Some(basis) => basis,
+            None => {
+                let basis = Arc::new(ModeBasis::solve_cached(
+                    &r.grid,
+                    r.element,
+                    r.poisson_ratio,
+                    r.solver,
+                    &r.options,
+                    Some(&mut elements(&self.elements)),
+                )?);
+                self.kept.keep(r, &basis);
+                basis
+            }
+        };
+        *lock(&self.last) = Some(basis.clone());
         Ok(ObjectModes::Fem(basis))
     }
 }
@@ -209,6 +219,7 @@ fn count_of(r: &ObjectRequest) -> usize {
 pub struct CoarseFemSolver {
     last: Shared,
     elements: SharedElements,
+    kept: KeptAnswers,
     answers: AnswerSwitch,
 }
 
@@ -218,7 +229,7 @@ impl ModeSolver for CoarseFemSolver {
     }
 
     fn applies(&self, r: &ObjectRequest) -> bool {
-        if self.answers.get() == Answers::PredictorOnly {
+        if self.answers.get() == Answers::PredictorOnly || self.kept.has(r) {
             return false;
         }
         if let Some(p) = lock(&self.last).as_ref() {
@@ -244,7 +255,7 @@ impl ModeSolver for CoarseFemSolver {
             &r.options,
             Some(&mut elements(&self.elements)),
         )
-        .map(ObjectModes::Fem)
+        .map(|b| ObjectModes::Fem(Arc::new(b)))
     }
 }
 
@@ -253,6 +264,7 @@ impl ModeSolver for CoarseFemSolver {
 pub struct CarriedRitzSolver {
     last: Shared,
     elements: SharedElements,
+    kept: KeptAnswers,
     answers: AnswerSwitch,
 }
 
@@ -262,7 +274,9 @@ impl ModeSolver for CarriedRitzSolver {
     }
 
     fn applies(&self, r: &ObjectRequest) -> bool {
-        self.answers.get() != Answers::PredictorOnly && carried_applies(&self.last, r)
+        self.answers.get() != Answers::PredictorOnly
+            && carried_applies(&self.last, r)
+            && !self.kept.has(r)
     }
 
     fn expected_error(&self) -> Option<f64> {
@@ -280,7 +294,7 @@ impl ModeSolver for CarriedRitzSolver {
             Some(&mut elements(&self.elements)),
         )
         .unwrap_or(Err(BasisError::NoPrevious))
-        .map(ObjectModes::Fem)
+        .map(|b| ObjectModes::Fem(Arc::new(b)))
     }
 }
 
@@ -335,6 +349,7 @@ pub const NEURAL_EXPECTED_ERROR: f64 = 0.015;
 pub struct NeuralSolver {
     predictor: Arc<Predictor>,
     last: Shared,
+    kept: KeptAnswers,
     answers: AnswerSwitch,
 }
 
@@ -347,7 +362,7 @@ impl ModeSolver for NeuralSolver {
         match self.answers.get() {
             Answers::FemOnly => false,
             Answers::PredictorOnly => true,
-            Answers::Auto => !carried_applies(&self.last, r),
+            Answers::Auto => !carried_applies(&self.last, r) && !self.kept.has(r),
         }
     }
 
@@ -358,38 +373,44 @@ impl ModeSolver for NeuralSolver {
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         self.predictor
             .predict(&r.grid)
-            .map(ObjectModes::Predicted)
+            .map(|p| ObjectModes::Predicted(Box::new(p)))
             .map_err(|e| BasisError::Predictor(e.to_string()))
     }
 }
 
-/// The plugin's chain, sharing the last exact answer: [`NeuralSolver`] when a predictor is
+/// The plugin's chain, sharing the last exact answer and `kept` (exact answers to earlier
+/// requests, [`super::answers`]; the plugin passes one per process): [`NeuralSolver`] when a predictor is
 /// given (else [`CoarseFemSolver`] for slow cold solves), [`CarriedRitzSolver`] (brush
 /// strokes), then [`IncrementalFemSolver`] (exact). `answers` selects among them at run time.
 pub fn interactive_solvers(
     predictor: Option<Arc<Predictor>>,
     answers: AnswerSwitch,
+    kept: &KeptAnswers,
 ) -> Vec<Box<dyn ModeSolver>> {
     let exact = IncrementalFemSolver {
         last: Arc::new(Mutex::new(None)),
         elements: SharedElements::default(),
+        kept: kept.clone(),
         answers: answers.clone(),
     };
     let first: Box<dyn ModeSolver> = match predictor {
         Some(predictor) => Box::new(NeuralSolver {
             predictor,
             last: exact.last.clone(),
+            kept: kept.clone(),
             answers: answers.clone(),
         }),
         None => Box::new(CoarseFemSolver {
             last: exact.last.clone(),
             elements: exact.elements.clone(),
+            kept: kept.clone(),
             answers: answers.clone(),
         }),
     };
     let carried = CarriedRitzSolver {
         last: exact.last.clone(),
         elements: exact.elements.clone(),
+        kept: kept.clone(),
         answers,
     };
     vec![first, Box::new(carried), Box::new(exact)]
@@ -429,6 +450,7 @@ mod tests {
         let mut carried = CarriedRitzSolver {
             last: exact.last.clone(),
             elements: exact.elements.clone(),
+            kept: exact.kept.clone(),
             answers: AnswerSwitch::default(),
         };
         exact.solve(&request(grid.clone())).unwrap();
@@ -449,5 +471,66 @@ mod tests {
         );
         exact.solve(&stroke).unwrap();
         assert_eq!(elements(&exact.elements).stats().misses, 0);
+    }
+
+    #[test]
+    fn a_second_chain_sharing_kept_answers_plays_the_same_object_without_a_solve() {
+        // Two plugin instances (two chains) with one store of kept answers: the second asks
+        // for the first's object and gets the very same answer (no solve: its own element
+        // cache stays empty). Undo back to the first shape on the first chain is answered the
+        // same way, and the carried answer, which would otherwise serve it, steps aside.
+        let kept = KeptAnswers::new();
+        let chain = || {
+            let exact = IncrementalFemSolver {
+                last: Arc::new(Mutex::new(None)),
+                elements: SharedElements::default(),
+                kept: kept.clone(),
+                answers: AnswerSwitch::default(),
+            };
+            let carried = CarriedRitzSolver {
+                last: exact.last.clone(),
+                elements: exact.elements.clone(),
+                kept: kept.clone(),
+                answers: AnswerSwitch::default(),
+            };
+            (exact, carried)
+        };
+        let grid = Primitive::Sphere { diameter: 10.0 }
+            .rasterize(1.0, 1.0)
+            .unwrap();
+        let request = |grid: VoxelGrid| ObjectRequest {
+            grid,
+            element: ElementKind::Hex8Incompatible,
+            poisson_ratio: 0.3,
+            solver: SolverKind::Auto,
+            options: EigenOptions {
+                count: ModeCount::First(20),
+                ..EigenOptions::default()
+            },
+            recording: None,
+        };
+        let (mut first, mut first_carried) = chain();
+        let ObjectModes::Fem(a) = first.solve(&request(grid.clone())).unwrap() else {
+            panic!("FEM")
+        };
+        let (mut second, _) = chain();
+        let ObjectModes::Fem(b) = second.solve(&request(grid.clone())).unwrap() else {
+            panic!("FEM")
+        };
+        assert!(Arc::ptr_eq(&a, &b), "the same answer, shared");
+        assert_eq!(elements(&second.elements).stats().entries, 0, "no assembly");
+        // A stroke on the first chain is new (carried, then exact); undoing it is not.
+        let mut edited = grid.clone();
+        let (i, _) = grid.partial_voxels().next().unwrap();
+        let v = crate::shape::lattice_coords(i, grid.dims());
+        edited.set(v[0], v[1], v[2], true);
+        assert!(first_carried.applies(&request(edited.clone())));
+        first_carried.solve(&request(edited.clone())).unwrap();
+        first.solve(&request(edited)).unwrap();
+        assert!(!first_carried.applies(&request(grid.clone())), "undo: kept");
+        let ObjectModes::Fem(c) = first.solve(&request(grid.clone())).unwrap() else {
+            panic!("FEM")
+        };
+        assert!(Arc::ptr_eq(&a, &c));
     }
 }

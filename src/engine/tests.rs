@@ -531,7 +531,7 @@ fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
         FS,
         EngineConfig::default(),
         steel(),
-        interactive_solvers(None, AnswerSwitch::default()),
+        interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new()),
     )
     .unwrap();
     let grid = thick_box(10);
@@ -598,7 +598,11 @@ fn the_predictor_answers_first_and_the_answers_switch_selects() {
         FS,
         EngineConfig::default(),
         steel(),
-        interactive_solvers(Some(std::sync::Arc::new(predictor)), answers.clone()),
+        interactive_solvers(
+            Some(std::sync::Arc::new(predictor)),
+            answers.clone(),
+            &KeptAnswers::new(),
+        ),
     )
     .unwrap();
     control.request(request(thick_box(8), 20));

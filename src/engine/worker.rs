@@ -74,7 +74,7 @@ impl ModeSolver for FemSolver {
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)
-            .map(ObjectModes::Fem)
+            .map(|b| ObjectModes::Fem(Arc::new(b)))
     }
 }
 

@@ -23,7 +23,7 @@ use super::alloc;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::{
     interactive_solvers, AnswerSwitch, DampingParams, Engine, EngineConfig, Event, Expression,
-    HitPoint, ObjectRequest, Pitch, SolveState, TimedEvent, Voicing,
+    HitPoint, KeptAnswers, ObjectRequest, Pitch, SolveState, TimedEvent, Voicing,
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
@@ -229,9 +229,11 @@ fn request(grid: VoxelGrid) -> ObjectRequest {
     }
 }
 
-/// Requests of the first object at the start and the end, before the heap is measured: each
-/// assembles it once, and the element cache keeps what the last `KEEP_ASSEMBLIES` assemblies
-/// used, so after this many it holds the first object's cut elements only, at both ends.
+/// Requests of the first object at the start and the end, before the heap is measured, each
+/// with the kept answers dropped first (so that each solves and assembles it): the element
+/// cache keeps what the last `KEEP_ASSEMBLIES` assemblies used, so after this many it holds
+/// the first object's cut elements only, and the kept answers the first object's, at both
+/// ends. (Both stores are bounded on their own; their tests check the bounds.)
 const SETTLE_REQUESTS: u64 = modalforge::fem::cache::KEEP_ASSEMBLIES;
 
 /// Lets the worker finish while the host keeps calling `process` (which takes delivered
@@ -264,11 +266,13 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
     let predictor = modalforge::predictor::Predictor::shipped()
         .ok()
         .map(std::sync::Arc::new);
+    // The chain's kept exact answers (the plugin shares one store per process).
+    let kept = KeptAnswers::new();
     let (mut audio, control) = Engine::start(
         RATE_HZ,
         config,
         base_voicing,
-        interactive_solvers(predictor, AnswerSwitch::default()),
+        interactive_solvers(predictor, AnswerSwitch::default(), &kept),
     )
     .expect("the engine starts");
     let first = base_object(&mut rng);
@@ -292,6 +296,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
         settle(&mut audio, &control, &mut out);
     }
     for _ in 0..SETTLE_REQUESTS {
+        kept.clear();
         control.request(request(first.clone()));
         settle(&mut audio, &control, &mut out);
     }
@@ -441,6 +446,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
     // answers, kept for warm starts, and the cut elements of the last assemblies) hold the
     // same objects as at the start.
     for _ in 0..SETTLE_REQUESTS {
+        kept.clear();
         control.request(request(first.clone()));
         settle(&mut audio, &control, &mut out);
     }
