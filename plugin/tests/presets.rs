@@ -27,7 +27,7 @@ fn fundamental(p: &Preset) -> (f64, f64, usize) {
         },
     )
     .unwrap();
-    let modes = modalforge::engine::ObjectModes::Fem(basis);
+    let modes = modalforge::engine::ObjectModes::Fem(std::sync::Arc::new(basis));
     let lines = spectrum(&modes, &p.voicing().unwrap(), FS).unwrap();
     let audible = lines.iter().filter(|l| l.freq_hz < 20_000.0).count();
     let f0 = lines
