@@ -14,7 +14,9 @@
 //!    the next stroke's carried answer.
 //!
 //! All three share the last exact basis (a coarse or carried answer never becomes the start of
-//! another).
+//! another) and the cut element matrices of recent assemblies ([`crate::fem::ElementCache`]).
+//! A request whose exact answer is kept ([`KeptAnswers`], shared by every chain the plugin
+//! starts) is answered by it at once, and the faster answers step aside.
 
 use super::answers::KeptAnswers;
 use super::object::ObjectModes;
@@ -143,7 +145,8 @@ fn warm_candidate(previous: &ModeBasis, request: &ObjectRequest) -> bool {
     overlap as f64 >= WARM_MIN_OVERLAP * next.len().max(old.voxels.len()) as f64
 }
 
-/// The exact FEM answer; it keeps the last one for the chain's faster answers to start from.
+/// The exact FEM answer, from the kept answers when the same request was solved before; it
+/// keeps the last one for the chain's faster answers to start from.
 pub struct IncrementalFemSolver {
     last: Shared,
     elements: SharedElements,
