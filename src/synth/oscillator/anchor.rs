@@ -58,8 +58,9 @@ impl Anchors {
         self.z_im.fill(0.0);
     }
 
-    /// Silences every slot and zeroes its constants (before a new layout is written).
-    pub fn clear_all(&mut self) {
+    /// Silences the first `slots` slots and zeroes their constants (before a new layout is
+    /// written).
+    pub fn clear_first(&mut self, slots: usize) {
         for v in [
             &mut self.z_re,
             &mut self.z_im,
@@ -68,7 +69,7 @@ impl Anchors {
             &mut self.back_re,
             &mut self.back_im,
         ] {
-            v.fill(0.0);
+            v[..slots].fill(0.0);
         }
     }
 }
