@@ -44,10 +44,10 @@ pub struct SoakReport {
     pub blocks: u64,
     /// Blocks whose `process` took longer than the block lasts (wall clock).
     pub deadline_misses: u64,
-    /// Of those, the blocks whose thread CPU time was over the deadline too: the engine's own
-    /// work was too slow. The rest were misses in which the thread was not running for part
-    /// of the block (preempted by the kernel or, on a virtual machine, by the hypervisor:
-    /// steal time, which no code on the guest can prevent).
+    /// Of those, the blocks whose thread CPU time was over the deadline too: at most the
+    /// misses the engine's own work caused (on a virtual machine, the hypervisor's steal
+    /// counts as the thread's CPU time as well). The rest were misses in which the thread was
+    /// not running for part of the block.
     pub cpu_misses: u64,
     /// The most CPU time one block's `process` took, µs.
     pub worst_block_cpu_us: f64,
