@@ -56,6 +56,9 @@ pub(crate) struct Voice {
     pub modes: Vec<SlotMode>,
     next_modes: Vec<SlotMode>,
     tunings: Vec<Tuning>,
+    // Scratch for [`Self::revoice`]'s in-place path: each mode's new frequency and decay.
+    freq_hz: Vec<f64>,
+    decay_per_s: Vec<f64>,
     pub amps: Vec<f64>,
     /// Scratch for [`Self::strike`]: which struck modes are already ringing.
     matched: Vec<bool>,
@@ -79,6 +82,8 @@ impl Voice {
             modes: Vec::with_capacity(capacity),
             next_modes: Vec::with_capacity(capacity),
             tunings: Vec::with_capacity(capacity),
+            freq_hz: vec![0.0; capacity],
+            decay_per_s: vec![0.0; capacity],
             amps: vec![0.0; capacity],
             matched: vec![false; capacity],
         }
@@ -112,6 +117,25 @@ impl Voice {
         let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let extra = self.extra_decay(voicing);
         let fs = self.bank.sample_rate_hz();
+        // Every mode still rings on the same side of fs/4 (an expression's small step): new
+        // constants in place, the cheap path.
+        let n = self.modes.len();
+        let mut all_ring = true;
+        for (j, m) in self.modes.iter().enumerate() {
+            let Some((f, d)) = tune(voicing, m.unit_eigenvalue, h, m.decay_ratio, extra, fs) else {
+                all_ring = false;
+                break;
+            };
+            (self.freq_hz[j], self.decay_per_s[j]) = (f, d);
+        }
+        if all_ring
+            && self
+                .bank
+                .retune_in_place(&self.freq_hz[..n], &self.decay_per_s[..n])
+                .is_ok()
+        {
+            return;
+        }
         self.next_modes.clear();
         self.tunings.clear();
         for (j, m) in self.modes.iter().enumerate() {

@@ -17,6 +17,7 @@
 //! [`OscillatorBank::render`] and [`OscillatorBank::reset`] never allocate, lock or block.
 
 mod anchor;
+mod constants;
 mod kernel;
 
 use super::excitation::{Excitation, ExcitationError};
@@ -113,6 +114,25 @@ pub enum RetuneError {
         freq_hz: f64,
         /// Its decay.
         decay_per_s: f64,
+    },
+    /// [`OscillatorBank::retune_in_place`] was given other than one frequency and one decay
+    /// per mode.
+    #[error("in-place retune got {freqs} frequencies and {decays} decays for {len} modes")]
+    LengthMismatch {
+        /// Frequencies given.
+        freqs: usize,
+        /// Decays given.
+        decays: usize,
+        /// Modes playing now.
+        len: usize,
+    },
+    /// A mode would cross a quarter of the sample rate, where the kernel changes from direct to
+    /// mirrored slots: [`OscillatorBank::retune_in_place`] keeps the layout, so use
+    /// [`OscillatorBank::retune`].
+    #[error("mode {index} crosses fs/4 and needs a full retune")]
+    CrossesQuarterRate {
+        /// Index of the mode.
+        index: usize,
     },
     /// `from` names a mode the bank does not have.
     #[error("mode {index} continues mode {from}, but the bank plays {len}")]
@@ -226,7 +246,11 @@ impl OscillatorBank {
                 });
             }
         }
-        // Every current mode's exact amplitude at the next sample.
+        // Every current mode's exact amplitude at the next sample (at the end of an anchor
+        // interval, the anchor's own exact step, with no exponentials).
+        if self.since_anchor == ANCHOR_SAMPLES {
+            self.advance_anchor();
+        }
         let dt = self.since_anchor as f64 / fs;
         for i in 0..self.len {
             let k = self.slot[i];
@@ -256,47 +280,110 @@ impl OscillatorBank {
         self.lambda.clear();
         self.gain.clear();
         for t in modes {
-            let (f, d) = (t.freq_hz, t.decay_per_s);
-            let mirrored = f > 0.25 * fs;
-            let l = Complex64::new(-d, TAU * f);
-            let r_minus_1 = (-d / fs).exp_m1();
-            let r = 1.0 + r_minus_1;
-            // The recurrence runs at w, or mirrored at pi - w; both kept in (0, pi/2].
-            let (k, w) = if mirrored {
-                next_high += 1;
-                (next_high - 1, TAU * (0.5 * fs - f) / fs)
+            let slot = if t.freq_hz > 0.25 * fs {
+                &mut next_high
             } else {
-                next_low += 1;
-                (next_low - 1, TAU * f / fs)
+                &mut next_low
             };
-            self.slot.push(k);
-            // kappa = (1 - r)^2 + 4 r sin^2(w/2): no cancellation, full relative precision.
-            self.kappa[k] = (r_minus_1 * r_minus_1 + 4.0 * r * (0.5 * w).sin().powi(2)) as f32;
-            self.c2[k] = (r * r) as f32;
-            self.lambda.push(l);
+            self.slot.push(*slot);
+            *slot += 1;
+            self.lambda
+                .push(Complex64::new(-t.decay_per_s, TAU * t.freq_hz));
             self.gain.push(t.gain);
-            let step = (l * (ANCHOR_SAMPLES as f64 / fs)).exp();
-            (self.anchors.step_re[k], self.anchors.step_im[k]) = (step.re, step.im);
-            // Maps a complex amplitude to the kernel's second state variable: y[n] - y[n-1]
-            // (1 - e^(-lambda/fs)), or mirrored z[n] - z[n-1] = +-(y[n] + y[n-1])
-            // (1 + e^(-lambda/fs) = -expm1(-lambda/fs + i pi), small near Nyquist).
-            let back = if mirrored {
-                -(-l / fs + Complex64::new(0.0, std::f64::consts::PI)).exp_m1_complex()
-            } else {
-                -(-l / fs).exp_m1_complex()
-            };
-            (self.anchors.back_re[k], self.anchors.back_im[k]) = (back.re, back.im);
+        }
+        self.len = modes.len();
+        self.write_constants();
+        for (i, t) in modes.iter().enumerate() {
             if let Some(from) = t.from {
                 // The next sample is an anchor (even on the new grid): no mirror sign.
-                let c = self.carried[from];
+                let (k, c) = (self.slot[i], self.carried[from]);
                 (self.anchors.z_re[k], self.anchors.z_im[k]) = (c.re, c.im);
                 self.y[k] = c.im as f32;
                 self.dy[k] = self.anchors.second_state(k, c) as f32;
             }
         }
-        self.len = modes.len();
         self.since_anchor = 0;
         Ok(())
+    }
+
+    /// Moves every mode to a new frequency and decay in place, at the next sample: what
+    /// [`Self::retune`] does with `from: Some(i)` for each mode `i` and the same gains, without
+    /// re-laying out the bank, at a quarter of its cost (the constants four modes at a time, no
+    /// state cleared). Per-note expression re-tunes a voice this way every block.
+    ///
+    /// Refused, with the bank unchanged, when the lengths differ from [`Self::len`], a mode
+    /// cannot ring ([`RetuneError::BadMode`]), or a mode crosses a quarter of the sample rate
+    /// ([`RetuneError::CrossesQuarterRate`]: it changes kernel halves; use [`Self::retune`]).
+    /// Never allocates.
+    pub fn retune_in_place(
+        &mut self,
+        freq_hz: &[f64],
+        decay_per_s: &[f64],
+    ) -> Result<(), RetuneError> {
+        if freq_hz.len() != self.len || decay_per_s.len() != self.len {
+            return Err(RetuneError::LengthMismatch {
+                freqs: freq_hz.len(),
+                decays: decay_per_s.len(),
+                len: self.len,
+            });
+        }
+        let fs = self.sample_rate_hz;
+        for (i, (&f, &d)) in freq_hz.iter().zip(decay_per_s).enumerate() {
+            if !(f > 0.0 && f < 0.5 * fs && d >= 0.0 && d < TAU * f) {
+                return Err(RetuneError::BadMode {
+                    index: i,
+                    freq_hz: f,
+                    decay_per_s: d,
+                });
+            }
+            if (f > 0.25 * fs) != (self.slot[i] >= self.split) {
+                return Err(RetuneError::CrossesQuarterRate { index: i });
+            }
+        }
+        // Every mode's exact amplitude now: a block-sized render ends on an anchor, whose own
+        // exact step brings it here; otherwise carried with an exponential.
+        if self.since_anchor == ANCHOR_SAMPLES {
+            self.advance_anchor();
+        }
+        if self.since_anchor != 0 {
+            let dt = self.since_anchor as f64 / fs;
+            constants::carry(
+                self.backend,
+                dt,
+                &self.lambda[..self.len],
+                &self.slot,
+                &mut self.anchors,
+            );
+        }
+        for (l, (&f, &d)) in self.lambda.iter_mut().zip(freq_hz.iter().zip(decay_per_s)) {
+            *l = Complex64::new(-d, TAU * f);
+        }
+        self.write_constants();
+        // The f32 state restarts from the exact one, as at an anchor (padded slots stay 0).
+        let n = self.used;
+        for k in 0..n {
+            let z = Complex64::new(self.anchors.z_re[k], self.anchors.z_im[k]);
+            self.y[k] = z.im as f32;
+            self.dy[k] = self.anchors.second_state(k, z) as f32;
+        }
+        self.since_anchor = 0;
+        Ok(())
+    }
+
+    /// Writes the kernel and anchor constants of every mode from `lambda`.
+    fn write_constants(&mut self) {
+        constants::write(
+            self.backend,
+            self.sample_rate_hz,
+            &self.lambda[..self.len],
+            constants::Slots {
+                slot: &self.slot,
+                split: self.split,
+                kappa: &mut self.kappa,
+                c2: &mut self.c2,
+                anchors: &mut self.anchors,
+            },
+        );
     }
 
     /// Each mode's current amplitude `|z|` (bank mode order) into `out[..len]`, for deciding
@@ -437,21 +524,6 @@ pub fn check_velocity(velocity: f64) -> Result<(), ExcitationError> {
         Ok(())
     } else {
         Err(ExcitationError::Velocity(velocity))
-    }
-}
-
-/// `e^x - 1` for complex `x`, accurate for small `|x|`.
-trait ExpM1Complex {
-    fn exp_m1_complex(self) -> Self;
-}
-
-impl ExpM1Complex for Complex64 {
-    fn exp_m1_complex(self) -> Self {
-        // e^(a+ib) - 1 = (e^a - 1) cos b + (cos b - 1) + i e^a sin b, with cos b - 1 = -2 sin^2(b/2).
-        let (a, b) = (self.re, self.im);
-        let em1 = a.exp_m1();
-        let cm1 = -2.0 * (0.5 * b).sin().powi(2);
-        Complex64::new(em1 * b.cos() + cm1, (em1 + 1.0) * b.sin())
     }
 }
 

@@ -417,3 +417,162 @@ fn bad_retunes_are_refused_and_change_nothing() {
         assert!((y as f64 - analytic(500.0, 1.0, 1.0, fs, n, 0)).abs() < 1e-5);
     }
 }
+
+/// Twenty-four modes from 5 Hz to 0.49 fs (half of them mirrored) with decays from 0 to a
+/// quarter of critical, the spread the in-place tests use.
+fn spread(fs: f64, detune: f64) -> (Vec<f64>, Vec<f64>) {
+    (0..24)
+        .map(|i| {
+            let f = 5.0 * (0.49 * fs / 5.0f64).powf(i as f64 / 23.0);
+            // Stay inside (0, fs/2) and on the same side of fs/4 as the undetuned mode.
+            let g = (f * detune).min(0.499 * fs);
+            let g = if (f > 0.25 * fs) == (g > 0.25 * fs) {
+                g
+            } else {
+                f
+            };
+            (g, [0.0, 0.3, 7.0, 0.25 * TAU * f][i % 4])
+        })
+        .unzip()
+}
+
+#[test]
+fn simd_constants_match_libm() {
+    // The constants four modes at a time (`wide`'s polynomials, cancellation-free forms) against
+    // the scalar libm reference, in the textbook forms. Tolerances: `step` is e^(64 lambda/fs)
+    // with |step| <= 1 and an argument of up to 64 pi rad, whose f64 rounding alone is 64 pi
+    // eps ~ 4.5e-14: 1e-13 absolute. `back` is ~|lambda|/fs for low modes: 1e-13 relative
+    // (a few ulps). `kappa` and `c2` are f32: within one f32 ulp (1.2e-7 relative).
+    for fs in [44100.0, 48000.0, 192000.0] {
+        let (f, d) = spread(fs, 1.0);
+        let tunings: Vec<Tuning> = f
+            .iter()
+            .zip(&d)
+            .map(|(&freq_hz, &decay_per_s)| Tuning {
+                freq_hz,
+                decay_per_s,
+                gain: 1.0,
+                from: None,
+            })
+            .collect();
+        let mut reference = OscillatorBank::with_capacity(32, fs, SimdBackend::Scalar);
+        reference.retune(&tunings).unwrap();
+        for backend in SimdBackend::all_available() {
+            let mut bank = OscillatorBank::with_capacity(32, fs, backend);
+            bank.retune(&tunings).unwrap();
+            for (i, &k) in reference.slot.iter().enumerate() {
+                let (a, b) = (&bank.anchors, &reference.anchors);
+                let step = Complex64::new(a.step_re[k] - b.step_re[k], a.step_im[k] - b.step_im[k]);
+                assert!(
+                    step.norm() < 1e-13,
+                    "{backend:?} fs {fs} mode {i}: step off {step}"
+                );
+                let back_ref = Complex64::new(b.back_re[k], b.back_im[k]);
+                let back = Complex64::new(a.back_re[k], a.back_im[k]) - back_ref;
+                assert!(
+                    back.norm() < 1e-13 * back_ref.norm(),
+                    "{backend:?} fs {fs} mode {i}: back off {back} of {back_ref}"
+                );
+                for (x, y, what) in [
+                    (bank.kappa[k], reference.kappa[k], "kappa"),
+                    (bank.c2[k], reference.c2[k], "c2"),
+                ] {
+                    assert!(
+                        (x - y).abs() <= 1.2e-7 * y.abs(),
+                        "{backend:?} fs {fs} mode {i}: {what} {x} vs {y}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn in_place_retune_continues_each_mode_exactly() {
+    // Truth as in `retune_continues_each_mode_from_its_exact_state`: z(t0) e^(lambda2 (t - t0)).
+    // Twenty-four modes, twelve mirrored, retuned in place twice: at an off-grid sample (the
+    // exact amplitudes carried to it) and then on the anchor grid; a glide-sized detune (+0.8 %)
+    // and back down. Budget: 24 modes of peak 1 at the f32 recurrence's ~1e-6 each.
+    let fs = 48000.0;
+    let (f1, d1) = spread(fs, 1.0);
+    let (f2, d2) = spread(fs, 1.008);
+    let (f3, d3) = spread(fs, 0.995);
+    let (t1, t2, end) = (7_013, 7_013 + 640, 7_013 + 640 + 3_000);
+    for backend in SimdBackend::all_available() {
+        let mut bank = OscillatorBank::with_capacity(32, fs, backend);
+        bank.retune(
+            &f1.iter()
+                .zip(&d1)
+                .map(|(&freq_hz, &decay_per_s)| Tuning {
+                    freq_hz,
+                    decay_per_s,
+                    gain: 1.0,
+                    from: None,
+                })
+                .collect::<Vec<_>>(),
+        )
+        .unwrap();
+        bank.strike(Excitation::Impulse, 1.0).unwrap();
+        let mut out = vec![0f32; end];
+        bank.render(&mut out[..t1]);
+        bank.retune_in_place(&f2, &d2).unwrap();
+        bank.render(&mut out[t1..t2]);
+        bank.retune_in_place(&f3, &d3).unwrap();
+        bank.render(&mut out[t2..]);
+        let worst = out
+            .iter()
+            .enumerate()
+            .map(|(n, &y)| {
+                let want: f64 = (0..f1.len())
+                    .map(|i| {
+                        let l = |f: &[f64], d: &[f64]| Complex64::new(-d[i], TAU * f[i]);
+                        let at = |n: usize| n as f64 / fs;
+                        let z1 = (l(&f1, &d1) * at(n.min(t1))).exp();
+                        let z2 = z1 * (l(&f2, &d2) * at(n.clamp(t1, t2) - t1)).exp();
+                        let z3 = z2 * (l(&f3, &d3) * at(n.max(t2) - t2)).exp();
+                        z3.im
+                    })
+                    .sum();
+                (y as f64 - want).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 5e-5,
+            "{backend:?}: max error {worst:e} (24 modes of peak 1)"
+        );
+    }
+}
+
+#[test]
+fn bad_in_place_retunes_are_refused_and_change_nothing() {
+    let fs = 48000.0;
+    let mut bank = OscillatorBank::with_capacity(4, fs, SimdBackend::detect());
+    let tunings = [(500.0, 1.0), (13000.0, 2.0)].map(|(freq_hz, decay_per_s)| Tuning {
+        freq_hz,
+        decay_per_s,
+        gain: 1.0,
+        from: None,
+    });
+    bank.retune(&tunings).unwrap();
+    bank.strike(Excitation::Impulse, 1.0).unwrap();
+    let mut out = vec![0f32; 100];
+    bank.render(&mut out);
+    let bad: [(&[f64], &[f64], &str); 6] = [
+        (&[500.0], &[1.0], "one mode short"),
+        (&[500.0, 13000.0], &[1.0], "decays short"),
+        (&[500.0, 11000.0], &[1.0, 2.0], "crosses fs/4 downwards"),
+        (&[12500.0, 13000.0], &[1.0, 2.0], "crosses fs/4 upwards"),
+        (&[500.0, 24000.0], &[1.0, 2.0], "at Nyquist"),
+        (&[500.0, 13000.0], &[f64::NAN, 2.0], "NaN decay"),
+    ];
+    for (f, d, why) in bad {
+        assert!(bank.retune_in_place(f, d).is_err(), "{why} accepted");
+    }
+    let mut out = vec![0f32; 480];
+    bank.render(&mut out);
+    for (n, &y) in out.iter().enumerate() {
+        let want =
+            analytic(500.0, 1.0, 1.0, fs, n + 100, 0) + analytic(13000.0, 2.0, 1.0, fs, n + 100, 0);
+        assert!((y as f64 - want).abs() < 1e-5, "sample {n}: {y} vs {want}");
+    }
+}
