@@ -61,6 +61,10 @@ pub struct AudioEngine {
     incoming: Consumer<Box<SolvedObject>>,
     retired: Producer<Box<SolvedObject>>,
     voices: Vec<Voice>,
+    // Per key, the voice that last sounded it: checked before use, so never trusted stale
+    // (`sounding_voice`). An MPE controller sends an expression per note and dimension, 192 a
+    // block in the engine bench; a scan of every voice for each was 25k checks a block.
+    key_hint: [u16; 256],
     // Scratch, sized at start.
     struck: Vec<SlotMode>,
     gains: Vec<f64>,
@@ -114,6 +118,7 @@ impl AudioEngine {
             #[cfg(test)]
             budget_split: (0.0, 0.0),
             voices,
+            key_hint: [0; 256],
             config,
             stats,
         }
@@ -417,8 +422,8 @@ impl AudioEngine {
                 *pressure = p.clamp(0.0, 1.0);
             }
         }
-        let sounding = |v: &&mut Voice| v.key == Some(key) && v.fade_left == 0;
-        for v in self.voices.iter_mut().filter(sounding) {
+        if let Some(v) = self.sounding_voice(key) {
+            let v = &mut self.voices[v];
             match expression {
                 Expression::TuningSemitones(st) if st.is_finite() => {
                     let st = st.clamp(-MAX_TUNING_SEMITONES, MAX_TUNING_SEMITONES);
@@ -433,6 +438,20 @@ impl AudioEngine {
                 _ => {}
             }
         }
+    }
+
+    /// The voice sounding `key`, not fading out: at most one (a strike on a sounding key
+    /// reuses its voice or fades it out). Tries the key's hint first, else scans and
+    /// refreshes the hint.
+    fn sounding_voice(&mut self, key: u8) -> Option<usize> {
+        let sounding = |v: &Voice| v.key == Some(key) && v.fade_left == 0;
+        let hint = usize::from(self.key_hint[usize::from(key)]);
+        if self.voices.get(hint).is_some_and(sounding) {
+            return Some(hint);
+        }
+        let found = self.voices.iter().position(sounding)?;
+        self.key_hint[usize::from(key)] = found as u16;
+        Some(found)
     }
 
     fn strike(
@@ -465,8 +484,7 @@ impl AudioEngine {
         };
         // The struck voice: the key's own at the same pitch; else a free one (a key re-pitched
         // fades out like a stolen voice, so nothing clicks).
-        let same = |v: &Voice| v.key == Some(key) && v.fade_left == 0;
-        let v = match self.voices.iter().position(same) {
+        let v = match self.sounding_voice(key) {
             Some(v) if (self.voices[v].pitch - pitch).abs() <= 1e-12 * pitch => Some(v),
             Some(v) => {
                 self.voices[v].fade_left = STEAL_FADE_SAMPLES;

@@ -18,11 +18,9 @@
 //! Everything comes from `expm1(-a)` and `sincos(b/2)` (Taylor series, inlined so that they run
 //! on AVX2, evaluated by Estrin's scheme), arranged so that nothing cancels:
 //! `cos b - 1 = -2 sin^2(b/2)`, `1 + cos b = 2 cos^2(b/2)`, `expm1(a) = -expm1(-a) / r`; the
-//! anchor step by six squarings of `r` and seven doublings of the angle. Measured (engine bench,
-//! 64 voices, 10k modes, expression on every voice every block): a block's re-tunes went from
-//! about 5.3 to 1.9 times the cost of rendering it. [`SimdBackend::Scalar`] computes the same
-//! constants with the platform's libm, one mode at a time, from the textbook forms; the tests
-//! hold the two to a few ulps.
+//! anchor step by six squarings of `r` and seven doublings of the angle. [`SimdBackend::Scalar`]
+//! computes the same constants with the platform's libm, one mode at a time, from the textbook
+//! forms; the tests hold the two to a few ulps.
 
 use super::anchor::Anchors;
 use super::ANCHOR_SAMPLES;
