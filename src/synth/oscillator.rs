@@ -226,11 +226,7 @@ impl OscillatorBank {
         }
         let fs = self.sample_rate_hz;
         for (i, t) in modes.iter().enumerate() {
-            let valid = t.freq_hz > 0.0
-                && t.freq_hz < 0.5 * fs
-                && t.decay_per_s >= 0.0
-                && t.decay_per_s < TAU * t.freq_hz
-                && t.gain.is_finite();
+            let valid = rings(t.freq_hz, t.decay_per_s, fs) && t.gain.is_finite();
             if !valid {
                 return Err(RetuneError::BadMode {
                     index: i,
@@ -329,7 +325,7 @@ impl OscillatorBank {
         }
         let fs = self.sample_rate_hz;
         for (i, (&f, &d)) in freq_hz.iter().zip(decay_per_s).enumerate() {
-            if !(f > 0.0 && f < 0.5 * fs && d >= 0.0 && d < TAU * f) {
+            if !rings(f, d, fs) {
                 return Err(RetuneError::BadMode {
                     index: i,
                     freq_hz: f,
@@ -516,6 +512,12 @@ impl OscillatorBank {
             .advance(self.backend, &mut self.y[..n], &mut self.dy[..n]);
         self.since_anchor = 0;
     }
+}
+
+/// Whether a mode can ring in a bank at `fs`: a frequency in `(0, fs/2)` and a decay in
+/// `[0, 2 pi freq_hz)` (it oscillates). NaN fails.
+fn rings(freq_hz: f64, decay_per_s: f64, fs: f64) -> bool {
+    freq_hz > 0.0 && freq_hz < 0.5 * fs && decay_per_s >= 0.0 && decay_per_s < TAU * freq_hz
 }
 
 /// Checks a strike velocity (a force multiplier, finite, `0..=MAX_VELOCITY`), as `strike` does.
