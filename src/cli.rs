@@ -285,6 +285,9 @@ pub fn run(cli: Cli) -> Result<String, CliError> {
         Command::Predictor(predictor::PredictorCommand::Index(args)) => {
             predictor::index_command(&args)
         }
+        Command::Predictor(predictor::PredictorCommand::Sweep(args)) => {
+            predictor::sweep_command(&args)
+        }
         Command::Modes(args) => modes_command(&args),
         Command::Analyze(args) => analyze::analyze_command(&args),
         Command::Render(args) => {

@@ -52,6 +52,25 @@ pub enum PredictorCommand {
     /// Build the pitch index (the band frequencies of a dataset's training shapes, which the
     /// predictor's bands play at) from a dataset's training split.
     Index(IndexArgs),
+    /// Choose the predictor's operating point: its figures on a dataset's training split at
+    /// every mask threshold, presence shift and near-twin distance tried (run it on objects of
+    /// the training families that training never saw, e.g. `dataset --count 200 --held-out 0
+    /// --seed 7`; never on the held-out families).
+    Sweep(SweepArgs),
+}
+
+/// Options of `modalforge predictor sweep`.
+#[derive(clap::Args, Debug)]
+pub struct SweepArgs {
+    /// Dataset directory (its training split is scored).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// Weights to score (a checkpoint's model.bpk).
+    #[arg(long, value_name = "FILE.bpk")]
+    pub weights: PathBuf,
+    /// Pitch index the bands play at [default: the shipped one].
+    #[arg(long, value_name = "FILE")]
+    pub pitch_index: Option<PathBuf>,
 }
 
 /// Options of `modalforge predictor index`.
@@ -234,4 +253,56 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
          shape matching: {matched} (nearest of {} training shapes)",
         train.len()
     ))
+}
+
+/// Runs `modalforge predictor sweep`.
+pub fn sweep_command(args: &SweepArgs) -> Result<String, CliError> {
+    let device = burn::tensor::Device::flex();
+    let model = train::load_model(&args.weights, &device)?;
+    let records: Vec<Record> = train::read_split(&args.data, false)?
+        .iter()
+        .filter_map(|b| Record::decode(b).ok())
+        .collect();
+    if records.is_empty() {
+        return Err(CliError::Option(format!(
+            "no training-split records under {}: make them with `modalforge dataset --out {} \
+             --count 200 --held-out 0 --seed 7`",
+            args.data.display(),
+            args.data.display()
+        )));
+    }
+    let pitch = read_pitch_index(args.pitch_index.as_deref())?;
+    let (points, cents) = metrics::sweep(&model, &pitch, &records, &device);
+    let mut out = format!(
+        "{} objects; masks (pitch at near-twin distance {}):\n\
+         threshold  presence  recall  precision     F1  amplitude MSE\n",
+        records.len(),
+        modalforge::predictor::NEAR_TWIN_DISTANCE
+    );
+    let best = points
+        .iter()
+        .map(|p| p.f1())
+        .fold(f64::NEG_INFINITY, f64::max);
+    for p in &points {
+        out += &format!(
+            "{:>9.2}  {:>8.1}  {:>5.1} %  {:>7.1} %  {:.3}  {:>13.4}{}\n",
+            p.threshold,
+            p.presence,
+            100.0 * p.metrics.mask_recall,
+            100.0 * p.metrics.mask_precision,
+            p.f1(),
+            p.metrics.amplitude_mse,
+            if p.f1() == best { "  <- best F1" } else { "" }
+        );
+    }
+    out += "pitch, median over every band both fill, by near-twin distance:\n";
+    for (twin, c) in cents {
+        let twin = match twin {
+            t if t == f32::NEG_INFINITY => "never".to_string(),
+            t if t == f32::INFINITY => "always".to_string(),
+            t => format!("{t:.2}"),
+        };
+        out += &format!("{twin:>9}  {c:.1} cents\n");
+    }
+    Ok(out.trim_end().to_string())
 }

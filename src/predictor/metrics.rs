@@ -101,16 +101,26 @@ pub fn score(predicted: &BandEncoding, truth: &BandEncoding) -> ObjectScore {
             s.entries += 1;
         }
     }
+    (s.cents, s.centre_cents) = band_cents(&predicted.band_log_hz, &truth.band_log_hz);
+    s
+}
+
+/// Cents off of each band both fill: the predicted frequency's, and the band centre's.
+fn band_cents(
+    predicted: &[Option<f32>; BANDS],
+    truth: &[Option<f32>; BANDS],
+) -> (Vec<f64>, Vec<f64>) {
     let e = band_edges_hz();
+    let (mut off, mut centre) = (Vec::new(), Vec::new());
     for b in 0..BANDS {
-        if let (Some(p), Some(t)) = (predicted.band_log_hz[b], truth.band_log_hz[b]) {
+        if let (Some(p), Some(t)) = (predicted[b], truth[b]) {
             let cents =
                 |log_hz: f64| (1200.0 * (log_hz - t as f64) * std::f64::consts::LOG2_10).abs();
-            s.cents.push(cents(p as f64));
-            s.centre_cents.push(cents((e[b] * e[b + 1]).sqrt().log10()));
+            off.push(cents(p as f64));
+            centre.push(cents((e[b] * e[b + 1]).sqrt().log10()));
         }
     }
-    s
+    (off, centre)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -180,6 +190,106 @@ pub fn evaluate(
     summarise(&scores)
 }
 
+/// The masks' operating points [`sweep`] tries: logit thresholds.
+pub const SWEEP_THRESHOLDS: [f32; 7] = [0.0, -0.5, -0.75, -1.0, -1.25, -1.5, -2.0];
+/// ... and how far the nearest training shape moves a band's presence logit.
+pub const SWEEP_PRESENCE: [f32; 4] = [0.0, 0.5, 1.0, 2.0];
+/// ... and the near-twin distances under which a band plays at the index's frequency
+/// (`-inf`: never, the network's own; `inf`: always).
+pub const SWEEP_TWIN: [f32; 7] = [f32::NEG_INFINITY, 0.01, 0.05, 0.1, 0.2, 0.3, f32::INFINITY];
+
+/// One operating point's figures from [`sweep`].
+#[derive(Clone, Debug)]
+pub struct SweepPoint {
+    /// Mask logit threshold.
+    pub threshold: f32,
+    /// Presence logit shift from the nearest training shape.
+    pub presence: f32,
+    /// The figures there (pitch at the shipped near-twin distance).
+    pub metrics: Metrics,
+}
+
+impl SweepPoint {
+    /// The masks' F1 score (harmonic mean of the mean recall and mean precision).
+    pub fn f1(&self) -> f64 {
+        let (r, p) = (self.metrics.mask_recall, self.metrics.mask_precision);
+        if r + p > 0.0 {
+            2.0 * r * p / (r + p)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The figures of the network and `pitch` on `records` at every masks' operating point
+/// ([`SWEEP_THRESHOLDS`] x [`SWEEP_PRESENCE`]) and the median pitch error at every near-twin
+/// distance ([`SWEEP_TWIN`]): how `MASK_LOGIT_THRESHOLD`, `NEIGHBOUR_PRESENCE_LOGIT` and
+/// `NEAR_TWIN_DISTANCE` are chosen, on objects of the training families that training never
+/// saw (never on the held-out families). The network runs once per record.
+pub fn sweep(
+    model: &ModeNet,
+    pitch: &PitchIndex,
+    records: &[Record],
+    device: &Device,
+) -> (Vec<SweepPoint>, Vec<(f32, f64)>) {
+    let points = SWEEP_THRESHOLDS.len() * SWEEP_PRESENCE.len();
+    let mut scores: Vec<Vec<ObjectScore>> = vec![Vec::with_capacity(records.len()); points];
+    let mut cents: Vec<Vec<f64>> = vec![Vec::new(); SWEEP_TWIN.len()];
+    for chunk in records.chunks(8) {
+        let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
+        let predicted = super::predict_batch(model, &grids, device);
+        for (p, r) in predicted.into_iter().zip(chunk) {
+            let found = pitch.query(&r.grid);
+            let gated = |twin_at: f32| {
+                let mut bands = p.band_log_hz;
+                for (b, own) in bands.iter_mut().enumerate() {
+                    if found.band_log_hz[b].is_some() && found.band_distance[b] <= twin_at {
+                        *own = found.band_log_hz[b];
+                    }
+                }
+                bands
+            };
+            for (&twin_at, cents) in SWEEP_TWIN.iter().zip(cents.iter_mut()) {
+                cents.extend(band_cents(&gated(twin_at), &r.labels.band_log_hz).0);
+            }
+            // As played: the shipped near-twin gate.
+            let mut q = p.clone();
+            q.band_log_hz = gated(super::NEAR_TWIN_DISTANCE);
+            let mut k = 0;
+            for &presence in &SWEEP_PRESENCE {
+                let mut biased = q.clone();
+                biased.bias_bands(
+                    &found
+                        .nearest_fills
+                        .map(|f| if f { presence } else { -presence }),
+                );
+                for &threshold in &SWEEP_THRESHOLDS {
+                    scores[k].push(score(&biased.to_encoding_at(threshold), &r.labels));
+                    k += 1;
+                }
+            }
+        }
+    }
+    let mut out = Vec::with_capacity(points);
+    let mut k = 0;
+    for &presence in &SWEEP_PRESENCE {
+        for &threshold in &SWEEP_THRESHOLDS {
+            out.push(SweepPoint {
+                threshold,
+                presence,
+                metrics: summarise(&scores[k]),
+            });
+            k += 1;
+        }
+    }
+    let pitch = SWEEP_TWIN
+        .iter()
+        .zip(cents)
+        .map(|(&t, c)| (t, median(c)))
+        .collect();
+    (out, pitch)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,5 +345,44 @@ mod tests {
         );
         // The band centre is at position 0.5: a quarter band from 0.25.
         assert!((m.band_centre_median_cents - 2.5 * tenth).abs() < 0.01);
+    }
+
+    /// The sweep scores what is played: at the shipped operating point its figures are
+    /// [`evaluate`]'s with the same index, exactly (same predictions, same decode), and its
+    /// pitch at the shipped near-twin distance is `evaluate`'s median.
+    #[test]
+    fn the_sweep_at_the_shipped_point_is_what_evaluate_scores() {
+        use crate::fem::ElementKind;
+        use crate::predictor::dataset;
+        let device = Device::flex();
+        let model = ModeNet::new(crate::predictor::network::Widths::SHIPPED, &device);
+        // Two training-family objects (modes in the bands at the reference size).
+        let records: Vec<Record> = (0..2)
+            .map(|i| {
+                let (family, grid) = dataset::object(3, false, i);
+                Record::label(family, grid, ElementKind::Hex8Incompatible).unwrap()
+            })
+            .collect();
+        let index = PitchIndex::from_labels([(&records[0].grid, &records[0].labels)]);
+        let want = evaluate(&model, Some(&index), &records, &device);
+        let (points, cents) = sweep(&model, &index, &records, &device);
+        let at = points
+            .iter()
+            .find(|p| {
+                p.threshold == crate::predictor::MASK_LOGIT_THRESHOLD
+                    && p.presence == crate::predictor::NEIGHBOUR_PRESENCE_LOGIT
+            })
+            .expect("the shipped point is swept");
+        assert!(
+            want.mask_recall > 0.0 && want.pitch_median_cents.is_finite(),
+            "{want}"
+        );
+        assert_eq!(at.metrics, want);
+        let (_, pitch) = cents
+            .iter()
+            .find(|(t, _)| *t == crate::predictor::NEAR_TWIN_DISTANCE)
+            .expect("the shipped distance is swept");
+        assert_eq!(*pitch, want.pitch_median_cents);
+        assert_eq!(points.len(), SWEEP_THRESHOLDS.len() * SWEEP_PRESENCE.len());
     }
 }
