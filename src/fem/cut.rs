@@ -408,16 +408,20 @@ mod tests {
 
     #[test]
     fn sum_factorisation_matches_the_sub_cell_table() {
-        // hex27's cut elements come from 1D integrals contracted axis by axis; the sub-cell
-        // table (the fill-weighted sum of matrices integrated on each sub-box in 3D) is an
-        // independent evaluation of the same sums. They agree to rounding: 1e-13 of the
-        // largest entry (sums of ~64 terms of mixed sign).
+        // hex27's cut elements come from the fill's Legendre moments contracted axis by axis
+        // (`cut::tensor`); the sub-cell table (the fill-weighted sum of matrices integrated
+        // on each sub-box in 3D) is an independent evaluation of the same sums. They agree to
+        // rounding: 1e-13 of the largest entry (sums of up to 512 terms of mixed sign).
         let nu = 0.3;
         let kind = ElementKind::Hex27;
         let n = 3 * kind.nodes();
-        for per_axis in [1, 2, 4] {
+        // Every sub-cell different, and (per_axis 4, 8) rows along x filled alike, which the
+        // sum factorisation folds.
+        let varied: fn(usize, usize) -> f64 = |c, _| ((c * 37) % 11) as f64 / 10.0;
+        let rows: fn(usize, usize) -> f64 = |c, s| ((c / s * 37) % 11) as f64 / 10.0;
+        for (per_axis, fill_of) in [(1, varied), (2, varied), (4, varied), (4, rows), (8, rows)] {
             let cells = per_axis * per_axis * per_axis;
-            let fill: Vec<f64> = (0..cells).map(|c| ((c * 37) % 11) as f64 / 10.0).collect();
+            let fill: Vec<f64> = (0..cells).map(|c| fill_of(c, per_axis)).collect();
             let cut = CutElement::new(kind, nu, per_axis);
             let (mut k, mut m) = (vec![0.0; n * n], vec![0.0; n * n]);
             cut.matrices(&fill, &mut k, &mut m, &mut cut.scratch());

@@ -37,29 +37,28 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
     // (n + 2)^3, x fastest.
     let side = n + 2;
     let mut field = [0.0f64; (SUBCELLS_PER_AXIS + 2).pow(3)];
-    let base = voxel.map(|c| c as isize * n as isize - 1);
-    let mut cached: Option<([isize; 3], VoxelFill)> = None;
+    // The voxel and its 26 neighbours (`[dz][dy][dx]`, each -1..=1), looked up once.
+    let neighbours: [VoxelFill; 27] = std::array::from_fn(|k| {
+        let d = [k % 3, (k / 3) % 3, k / 9];
+        if d == [1, 1, 1] {
+            return VoxelFill::Partial(*fill);
+        }
+        let v = [0, 1, 2].map(|a| voxel[a] as isize + d[a] as isize - 1);
+        grid.fill_at(v[0], v[1], v[2])
+    });
+    // Halo coordinate `l` (0..n + 2) -> (neighbour offset 0..=2, sub-cell within it).
+    let split_coord = |l: usize| match l {
+        0 => (0, n - 1),
+        l if l <= n => (1, l - 1),
+        _ => (2, 0),
+    };
     for (i, value) in field.iter_mut().enumerate() {
-        let l = [i % side, (i / side) % side, i / (side * side)];
-        let g = [0, 1, 2].map(|a| base[a] + l[a] as isize);
-        let v = g.map(|c| c.div_euclid(n as isize));
-        let s = g.map(|c| c.rem_euclid(n as isize) as usize);
-        let voxel_fill = match cached {
-            Some((at, f)) if at == v => f,
-            _ => {
-                let f = if v == voxel.map(|c| c as isize) {
-                    VoxelFill::Partial(*fill)
-                } else {
-                    grid.fill_at(v[0], v[1], v[2])
-                };
-                cached = Some((v, f));
-                f
-            }
-        };
-        *value = match voxel_fill {
+        let [(vx, sx), (vy, sy), (vz, sz)] =
+            [i % side, (i / side) % side, i / (side * side)].map(split_coord);
+        *value = match &neighbours[vx + 3 * (vy + 3 * vz)] {
             VoxelFill::Empty => 0.0,
             VoxelFill::Full => 1.0,
-            VoxelFill::Partial(f) => f.0[s[0] + n * (s[1] + n * s[2])] as f64 / FULL as f64,
+            VoxelFill::Partial(f) => f.0[sx + n * (sy + n * sz)] as f64 / FULL as f64,
         };
     }
     let at = |c: [usize; 3]| field[c[0] + side * (c[1] + side * c[2])];
@@ -101,17 +100,32 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
 /// the surface): the Sobel-weighted central difference over its 3^3 neighbourhood (weights 4,
 /// 2, 1 by how close a neighbour row is). `None` where it vanishes.
 fn gradient(at: &impl Fn([usize; 3]) -> f64, c: [usize; 3]) -> Option<[f64; 3]> {
-    let mut g = [0.0; 3];
-    for dz in 0..3usize {
-        for dy in 0..3usize {
-            for dx in 0..3usize {
-                let d = [dx as isize - 1, dy as isize - 1, dz as isize - 1];
-                let f = at([c[0] + dx - 1, c[1] + dy - 1, c[2] + dz - 1]);
-                for a in 0..3 {
-                    let off = (0..3).filter(|&b| b != a && d[b] != 0).count();
-                    g[a] += [4.0, 2.0, 1.0][off] * d[a] as f64 * f;
-                }
+    /// Per neighbour (`[dz][dy][dx]`, each 0..3 for -1..=1) and axis: the Sobel weight (4, 2
+    /// or 1 by how many of the other two offsets are non-zero) times the offset along the axis.
+    const WEIGHTS: [[f64; 3]; 27] = {
+        let mut w = [[0.0; 3]; 27];
+        let mut k = 0;
+        while k < 27 {
+            let d = [
+                (k % 3) as i32 - 1,
+                ((k / 3) % 3) as i32 - 1,
+                (k / 9) as i32 - 1,
+            ];
+            let mut a = 0;
+            while a < 3 {
+                let off = (d[(a + 1) % 3] != 0) as usize + (d[(a + 2) % 3] != 0) as usize;
+                w[k][a] = [4.0, 2.0, 1.0][off] * d[a] as f64;
+                a += 1;
             }
+            k += 1;
+        }
+        w
+    };
+    let mut g = [0.0; 3];
+    for (k, w) in WEIGHTS.iter().enumerate() {
+        let f = at([c[0] + k % 3 - 1, c[1] + (k / 3) % 3 - 1, c[2] + k / 9 - 1]);
+        for a in 0..3 {
+            g[a] += w[a] * f;
         }
     }
     let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();

@@ -11,14 +11,22 @@
 //! `int chi d_i N_a d_j N_b = sum_{c1 c2 c3} chi[c] A_x[c1](a1, b1) A_y[c2](a2, b2) A_z[c3](a3, b3)`
 //!
 //! where `A_k[c](f, g)` is the 1D integral over sub-cell `c` of the two 1D factors along axis
-//! `k`, differentiated where `k` is `i` (the first) or `j` (the second). Contracting one axis
-//! at a time costs `s^3 9 + s^2 81 + s 729` multiply-adds (4.8 k for `s = 4`) per integral,
-//! seven integrals per element (six derivative pairs and the mass): 25x fewer than the table
-//! (12 us per element on one core of this machine, against 46 us with the table). The x
-//! contraction, the largest term, depends only on the x table, of which the seven integrals
-//! use three, and a row of sub-cells filled alike (a full or empty voxel's) contracts to one
-//! weight times the table's row sum: what keeps hex27x2's 16 sub-cells per axis (2 voxels of
-//! refined 8^3, `crate::shape::refine`) affordable.
+//! `k`, differentiated where `k` is `i` (the first) or `j` (the second). A product of two 1D
+//! factors is a polynomial of degree 4 at most, so it is a combination of the Legendre
+//! polynomials `L_0..L_4` of the element's axis, and every `A_k[c](f, g)` is that
+//! combination of the sub-cell's Legendre moments `mu_l(c) = int_c L_l dx`. So the fill enters
+//! only through its `5^3` moments `M[l3][l2][l1] = sum_c chi[c] mu_l1(c1) mu_l2(c2) mu_l3(c3)`
+//! (moment fitting with exact moments: Müller, Kummer and Oberlack 2013, here for
+//! piecewise-constant fills), contracted axis by axis (`s^3 5 + s^2 25 + s 125` multiply-adds
+//! for `s` sub-cells per axis), and each of the seven integrals (six derivative pairs and the
+//! mass) is then the moments contracted with the 9 x 5 coefficient matrices of its three axes
+//! (`25 9 5 + 5 81 5 + 729 5` multiply-adds; the x step is shared by the integrals with the
+//! same x factors). For hex27x2's 16 sub-cells per axis (2 voxels of refined 8^3,
+//! `crate::shape::refine`) this is about 75 k multiply-adds per element where contracting the
+//! 1D sub-cell tables themselves (27 numbers per sub-cell instead of 5) took about 340 k, and
+//! the sub-cell table of matrices (`2 x 81^2` per sub-cell) would take 54 M. A row of
+//! sub-cells filled alike (a full or empty voxel's) has the moments of its weight times the
+//! whole interval's: `(w, 0, 0, 0, 0)`.
 //! The stiffness follows from the derivative integrals `I^{ij}(a, b)` with Lamé's constants:
 //! `K(3a+c, 3b+d) = lambda I^{cd}(a, b) + mu I^{dc}(a, b) + mu delta_cd sum_l I^{ll}(a, b)`,
 //! which is `int B^T D B` for isotropic `D` written out.
@@ -30,6 +38,8 @@ use crate::fem::element::{basis_1d, gauss};
 const M: usize = 3;
 /// Pairs of factors per axis, `f * M + g`.
 const P: usize = M * M;
+/// Legendre polynomials per axis: a product of two 1D factors has degree 4 at most.
+const L: usize = 5;
 /// Nodes of the element and DOFs.
 const NODES: usize = M * M * M;
 const NDOF: usize = 3 * NODES;
@@ -42,16 +52,43 @@ fn pair_index(a: usize, b: usize) -> usize {
     ((az * M + bz) * P + ay * M + by) * P + ax * M + bx
 }
 
+/// Five-point Gauss-Legendre rule on [-1, 1].
+const GAUSS5_POINTS: [f64; 5] = [
+    -0.906_179_845_938_664,
+    -0.538_469_310_105_683_1,
+    0.0,
+    0.538_469_310_105_683_1,
+    0.906_179_845_938_664,
+];
+const GAUSS5_WEIGHTS: [f64; 5] = [
+    0.236_926_885_056_189_1,
+    0.478_628_670_499_366_5,
+    0.568_888_888_888_888_9,
+    0.478_628_670_499_366_5,
+    0.236_926_885_056_189_1,
+];
+
+/// Legendre polynomials `L_0..L_4` at `xi` (Bonnet's recursion).
+fn legendre(xi: f64) -> [f64; L] {
+    let mut l = [0.0; L];
+    l[0] = 1.0;
+    l[1] = xi;
+    for n in 1..L - 1 {
+        l[n + 1] = ((2 * n + 1) as f64 * xi * l[n] - n as f64 * l[n - 1]) / (n + 1) as f64;
+    }
+    l
+}
+
 /// hex27's cut-element integrals for one sub-cell count and Poisson's ratio.
 #[derive(Clone, Debug)]
 pub struct Hex27Subcells {
     per_axis: usize,
-    /// The 1D integrals of one axis, per sub-cell: `table[p][q][c][f * M + g] = int_c f^(p)
-    /// g^(q) dx` over sub-cell `c` of the unit interval (`x = (xi + 1) / 2`, so
-    /// `d/dx = 2 d/dxi`); the same on every axis.
-    table: [[Vec<[f64; P]>; 2]; 2],
-    /// Each table summed over the sub-cells (a whole axis of constant fill).
-    row_sums: [[[f64; P]; 2]; 2],
+    /// The Legendre moments of each sub-cell of one axis: `moments[c][l] = int_c L_l(xi) dx`
+    /// over sub-cell `c` of the unit interval (`x = (xi + 1) / 2`); the same on every axis.
+    moments: Vec<[f64; L]>,
+    /// `coef[p][q][f * M + g][l]`: the Legendre coefficients of `f^(p) g^(q)`, the product
+    /// of two 1D factors, differentiated (`d/dx = 2 d/dxi`) where `p` or `q` is 1.
+    coef: [[[[f64; L]; P]; 2]; 2],
     /// `(pair_index(a, b), pair_index(b, a))` for every node pair, `a` major.
     pairs: Vec<(u16, u16)>,
     lambda: f64,
@@ -63,41 +100,54 @@ pub struct Hex27Subcells {
 pub struct TensorScratch {
     /// The weights `chi`, x fastest.
     weights: Vec<f64>,
-    /// After contracting x, for each of the three x tables: `[c3][c2][pair_x]`.
-    t1: [Vec<[f64; P]>; 3],
-    /// After contracting y: `[c3][pair_y][pair_x]`.
-    t2: Vec<[[f64; P]; P]>,
+    /// The fill's x moments per row of sub-cells: `[c3][c2][l1]`.
+    m1: Vec<[f64; L]>,
+    /// ... and its x and y moments: `[c3][l2][l1]`.
+    m2: Vec<[[f64; L]; L]>,
     /// The seven integrals, `[pair_z][pair_y][pair_x]` each: I^xx, I^yy, I^zz, I^xy, I^yz,
     /// I^xz, mass.
     integrals: Vec<[[[f64; P]; P]; P]>,
 }
 
 impl Hex27Subcells {
-    /// The 1D tables for `per_axis` sub-cells per axis and Poisson's ratio `nu` (`E = 1`).
+    /// The 1D moments and coefficients for `per_axis` sub-cells per axis and Poisson's ratio
+    /// `nu` (`E = 1`).
     pub fn new(per_axis: usize, nu: f64) -> Self {
         // Three Gauss points per sub-cell integrate the degree-4 products exactly.
         let (pts, wts) = gauss(3);
-        let mut table: [[Vec<[f64; P]>; 2]; 2] = Default::default();
         let step = 2.0 / per_axis as f64;
-        for (p, row) in table.iter_mut().enumerate() {
-            for (q, cells) in row.iter_mut().enumerate() {
-                for c in 0..per_axis {
-                    let (lo, hi) = (-1.0 + step * c as f64, -1.0 + step * (c + 1) as f64);
-                    let mut out = [0.0; P];
-                    for (t, w) in pts.iter().zip(wts) {
-                        let xi = 0.5 * (lo + hi) + 0.5 * (hi - lo) * t;
-                        // dx = dxi / 2 over a sub-interval of half-width (hi - lo) / 2.
-                        let weight = w * 0.5 * (hi - lo) * 0.5;
-                        let (v, d) = basis_1d(2, xi);
-                        let pick =
-                            |k: usize, deriv: usize| if deriv == 1 { 2.0 * d[k] } else { v[k] };
-                        for f in 0..M {
-                            for g in 0..M {
-                                out[f * M + g] += weight * pick(f, p) * pick(g, q);
+        let moments = (0..per_axis)
+            .map(|c| {
+                let (lo, hi) = (-1.0 + step * c as f64, -1.0 + step * (c + 1) as f64);
+                let mut out = [0.0; L];
+                for (t, w) in pts.iter().zip(wts) {
+                    let xi = 0.5 * (lo + hi) + 0.5 * (hi - lo) * t;
+                    // dx = dxi / 2 over a sub-interval of half-width (hi - lo) / 2.
+                    let weight = w * 0.5 * (hi - lo) * 0.5;
+                    out.iter_mut()
+                        .zip(legendre(xi))
+                        .for_each(|(o, l)| *o += weight * l);
+                }
+                out
+            })
+            .collect();
+        // Five Gauss points integrate a degree-4 product times L_4 exactly; L_l has norm
+        // 2 / (2 l + 1) on [-1, 1].
+        let mut coef = [[[[0.0; L]; P]; 2]; 2];
+        for (p, row) in coef.iter_mut().enumerate() {
+            for (q, pairs) in row.iter_mut().enumerate() {
+                for (t, w) in GAUSS5_POINTS.iter().zip(GAUSS5_WEIGHTS) {
+                    let (v, d) = basis_1d(2, *t);
+                    let pick = |k: usize, deriv: usize| if deriv == 1 { 2.0 * d[k] } else { v[k] };
+                    let l = legendre(*t);
+                    for f in 0..M {
+                        for g in 0..M {
+                            let product = pick(f, p) * pick(g, q);
+                            for (n, c) in pairs[f * M + g].iter_mut().enumerate() {
+                                *c += w * product * l[n] * (2 * n + 1) as f64 / 2.0;
                             }
                         }
                     }
-                    cells.push(out);
                 }
             }
         }
@@ -107,19 +157,10 @@ impl Hex27Subcells {
                 (pair_index(a, b) as u16, pair_index(b, a) as u16)
             })
             .collect();
-        let row_sums = table.each_ref().map(|row| {
-            row.each_ref().map(|cells| {
-                let mut sum = [0.0; P];
-                for c in cells {
-                    sum.iter_mut().zip(c).for_each(|(s, v)| *s += v);
-                }
-                sum
-            })
-        });
         Self {
             per_axis,
-            table,
-            row_sums,
+            moments,
+            coef,
             pairs,
             lambda: nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
             mu: 1.0 / (2.0 * (1.0 + nu)),
@@ -131,8 +172,8 @@ impl Hex27Subcells {
         let s = self.per_axis;
         TensorScratch {
             weights: vec![0.0; s * s * s],
-            t1: std::array::from_fn(|_| vec![[0.0; P]; s * s]),
-            t2: vec![[[0.0; P]; P]; s],
+            m1: vec![[0.0; L]; s * s],
+            m2: vec![[[0.0; L]; L]; s],
             integrals: vec![[[[0.0; P]; P]; P]; 7],
         }
     }
@@ -188,53 +229,83 @@ impl Hex27Subcells {
         for (w, f) in scratch.weights.iter_mut().zip(fill) {
             *w = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
         }
-        // (derivative axis of the first factor, of the second), 3 = none.
-        const PATTERNS: [(usize, usize); 7] =
-            [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2), (3, 3)];
-        // The x contraction depends only on the x table, `table[p][q]` with `(p, q)` one of
-        // (0, 0), (1, 0), (1, 1) (i <= j in every pattern): three contractions serve the
-        // seven integrals. A row of sub-cells filled alike (a full or empty voxel's, or a
-        // block's) contracts to its weight times the table's row sum.
-        const X_TABLES: [(usize, usize); 3] = [(0, 0), (1, 0), (1, 1)];
-        for (t1, &(p, q)) in scratch.t1.iter_mut().zip(&X_TABLES) {
-            let ax = &self.table[p][q];
-            let sum = &self.row_sums[p][q];
-            for (row, t) in scratch.weights.chunks_exact(s).zip(t1.iter_mut()) {
-                if row.iter().all(|&w| w == row[0]) {
-                    let w = row[0];
-                    t.iter_mut().zip(sum).for_each(|(t, a)| *t = w * a);
-                    continue;
-                }
-                *t = [0.0; P];
-                for (w, a) in row.iter().zip(ax) {
-                    t.iter_mut().zip(a).for_each(|(t, a)| *t += w * a);
+        // The fill's Legendre moments, one axis at a time. x: a row of sub-cells filled alike
+        // (a full or empty voxel's) has its weight times the whole interval's, (w, 0, ...).
+        let mu = &self.moments;
+        for (row, m1) in scratch.weights.chunks_exact(s).zip(scratch.m1.iter_mut()) {
+            *m1 = [0.0; L];
+            if row.iter().all(|&w| w == row[0]) {
+                m1[0] = row[0];
+                continue;
+            }
+            for (w, mu) in row.iter().zip(mu) {
+                m1.iter_mut().zip(mu).for_each(|(m, mu)| *m += w * mu);
+            }
+        }
+        // y: m2[c3][l2][l1] = sum_c2 mu_l2(c2) m1[c3][c2][l1].
+        for (m1, m2) in scratch.m1.chunks_exact(s).zip(scratch.m2.iter_mut()) {
+            *m2 = [[0.0; L]; L];
+            for (m1, mu) in m1.iter().zip(mu) {
+                for (out, &mu) in m2.iter_mut().zip(mu) {
+                    out.iter_mut().zip(m1).for_each(|(o, m)| *o += mu * m);
                 }
             }
         }
+        // z: moments[l3][l2][l1] = sum_c3 mu_l3(c3) m2[c3][l2][l1].
+        let mut moments = [[[0.0; L]; L]; L];
+        for (m2, mu) in scratch.m2.iter().zip(mu) {
+            for (plane, &mu) in moments.iter_mut().zip(mu) {
+                plane
+                    .as_flattened_mut()
+                    .iter_mut()
+                    .zip(m2.as_flattened())
+                    .for_each(|(o, m)| *o += mu * m);
+            }
+        }
+        // The integrals: the moments contracted with each axis's coefficients. The x step
+        // depends only on the x factors, `coef[p][q]` with `(p, q)` one of (0, 0), (1, 0),
+        // (1, 1) (i <= j in every pattern): three serve the seven integrals.
+        const X_FACTORS: [(usize, usize); 3] = [(0, 0), (1, 0), (1, 1)];
+        let mut a1 = [[[[0.0; P]; L]; L]; 3];
+        for (a1, &(p, q)) in a1.iter_mut().zip(&X_FACTORS) {
+            let cx = &self.coef[p][q];
+            for (a1, moments) in a1.as_flattened_mut().iter_mut().zip(moments.as_flattened()) {
+                for (o, c) in a1.iter_mut().zip(cx) {
+                    *o = c.iter().zip(moments).map(|(c, m)| c * m).sum();
+                }
+            }
+        }
+        // (derivative axis of the first factor, of the second), 3 = none.
+        const PATTERNS: [(usize, usize); 7] =
+            [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2), (3, 3)];
         for (slot, &(i, j)) in PATTERNS.iter().enumerate() {
-            let axis = |k: usize| &self.table[(k == i) as usize][(k == j) as usize];
-            let (ay, az) = (axis(1), axis(2));
+            let axis = |k: usize| &self.coef[(k == i) as usize][(k == j) as usize];
+            let (cy, cz) = (axis(1), axis(2));
             let x_key = ((0 == i) as usize, (0 == j) as usize);
-            let t1 = &scratch.t1[X_TABLES.iter().position(|&k| k == x_key).expect("x table")];
-            // Contract y: t2[c3][py][px] = sum_c2 ay[c2][py] t1[c3 s + c2][px].
-            for (t1, t2) in t1.chunks_exact(s).zip(scratch.t2.iter_mut()) {
-                let t2 = t2.as_flattened_mut();
-                t2.fill(0.0);
-                for (t, a) in t1.iter().zip(ay) {
-                    for (out, &a) in t2.chunks_exact_mut(P).zip(a) {
-                        out.iter_mut().zip(t).for_each(|(o, t)| *o += a * t);
+            let a1 = &a1[X_FACTORS
+                .iter()
+                .position(|&k| k == x_key)
+                .expect("x factors")];
+            // y: a2[l3][py][px] = sum_l2 cy[py][l2] a1[l3][l2][px].
+            let mut a2 = [[[0.0; P]; P]; L];
+            for (a2, a1) in a2.iter_mut().zip(a1) {
+                for (out, c) in a2.iter_mut().zip(cy) {
+                    for (&c, a1) in c.iter().zip(a1) {
+                        out.iter_mut().zip(a1).for_each(|(o, a)| *o += c * a);
                     }
                 }
             }
-            // Contract z: I[pz][py][px] = sum_c3 az[c3][pz] t2[c3][py][px].
+            // z: I[pz][py][px] = sum_l3 cz[pz][l3] a2[l3][py][px].
             let out = scratch.integrals[slot]
                 .as_flattened_mut()
                 .as_flattened_mut();
-            out.fill(0.0);
-            for (t2, a) in scratch.t2.iter().zip(az) {
-                let t2 = t2.as_flattened();
-                for (plane, &a) in out.chunks_exact_mut(P * P).zip(a) {
-                    plane.iter_mut().zip(t2).for_each(|(o, t)| *o += a * t);
+            for (plane, c) in out.chunks_exact_mut(P * P).zip(cz) {
+                plane.fill(0.0);
+                for (&c, a2) in c.iter().zip(&a2) {
+                    plane
+                        .iter_mut()
+                        .zip(a2.as_flattened())
+                        .for_each(|(o, a)| *o += c * a);
                 }
             }
         }
