@@ -61,24 +61,23 @@ pub fn shipped_pitch_index() -> Result<Arc<PitchIndex>, PitchIndexError> {
 }
 
 /// A strike's mask is on where its logit exceeds this: probability 0.27, not 0.5. The shipped
-/// network's masks lean towards "off" (recall 36 %, precision 75 % at 0 on objects of its
+/// network's masks lean towards "off" (recall 41 %, precision 74 % at 0 on objects of its
 /// training families), so the operating point was chosen by the masks' F1 score on 200
 /// objects of the training families that training never saw (`modalforge predictor sweep` on
 /// `modalforge dataset --count 200 --held-out 0 --seed 7 --element hex27x2`; with the presence
-/// shift below): F1 0.49 at 0, 0.61 at -0.75, 0.62 at -1, 0.63 at -1.25, 0.62 at -1.5, 0.59
-/// at -2; the best of the whole sweep, 0.634 (-2 with a shift of 1), is within 0.016. -1 is
-/// kept for its balance: recall 62 %, precision 62 % there. The held-out families played no
-/// part in choosing it.
+/// shift below): F1 0.53 at 0, 0.62 at -0.75, 0.64 at -1, 0.62 at -1.25, 0.62 at -1.5, 0.59
+/// at -2; the best of the whole sweep, 0.640 (-1.5 with a shift of 1), is within 0.001.
+/// Recall 67 %, precision 61 % there. The held-out families played no part in choosing it.
 pub const MASK_LOGIT_THRESHOLD: f32 = -1.0;
 
 /// How far the pitch index's nearest training shape moves a band's presence logit: up where
 /// that shape has a mode in the band, down where it has none (Deep-Modal's shape matching as
 /// a second opinion on the spectrum). Chosen with the threshold on the same 200
-/// training-family objects: mask F1 0.594 without it, 0.618 at +-0.5, 0.605 at +-1, 0.584 at
+/// training-family objects: mask F1 0.597 without it, 0.639 at +-0.5, 0.616 at +-1, 0.592 at
 /// +-2 (each at threshold -1; the hex8i-trained weights before these: 0.591, 0.623, 0.608,
 /// 0.565, and the share of the 3, 5 or 9 nearest did no better, 0.619 at best). On the 500
-/// held-out objects, with the pitch index, it takes precision from 52.7 % to 60.5 % and
-/// recall from 67.2 % to 65.7 %.
+/// held-out objects, with the pitch index, it takes precision from 51.7 % to 59.8 % and
+/// recall from 68.3 % to 66.9 %.
 pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 0.5;
 
 /// A band plays at the pitch index's frequency only where the training shape it comes from is
@@ -86,9 +85,9 @@ pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 0.5;
 /// [`pitch_index::Retrieval::band_distance`]): a far shape's mode is another mode, and its
 /// frequency is no better than the band centre (cups with handles: 46 cents from the index,
 /// 40 from the band centres). Chosen on the same 200 training-family objects (median pitch
-/// error 33.4 cents ungated, 39.2 from the network alone; 32.7, 32.9, 31.7, 31.8, 31.8 at
+/// error 33.4 cents ungated, 38.8 from the network alone; 31.9, 32.9, 31.7, 31.7, 31.8 at
 /// 0.01, 0.05, 0.1, 0.2, 0.3: `modalforge predictor sweep`); on the 500 held-out objects the
-/// median is 25.9 cents with it (40.9 from the network alone).
+/// median is 26.2 cents with it (40.9 from the network alone).
 pub const NEAR_TWIN_DISTANCE: f32 = 0.1;
 
 /// The trained network, ready to predict on the CPU, and the pitch index that gives its bands'

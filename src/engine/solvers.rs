@@ -342,8 +342,8 @@ impl AnswerSwitch {
 }
 
 /// Typical frequency error of the predictor's answer, for the status line: the held-out median
-/// pitch error of the shipped predictor (network and pitch index), 25.9 cents (`modalforge
-/// predictor eval`; `assets/predictor/README.md`), as a ratio (`2^(25.9 / 1200) - 1`).
+/// pitch error of the shipped predictor (network and pitch index), 26.2 cents (`modalforge
+/// predictor eval`; `assets/predictor/README.md`), as a ratio (`2^(26.2 / 1200) - 1`).
 pub const NEURAL_EXPECTED_ERROR: f64 = 0.015;
 
 /// The neural predictor's answer (issue 12): milliseconds for any shape in the 32^3 box. It

@@ -7,7 +7,7 @@
 //! ([`super::Prediction::retune`] applies both). The network's own in-band position head never
 //! learnt (its loss stayed at the uniform distribution's value in every training run, so its
 //! frequencies are the band centres, about 41 cents off on the held-out split); with a near
-//! twin's FEM frequencies the median is 25.9 cents (hex27x2 labels; 25.8 with the hex8i ones
+//! twin's FEM frequencies the median is 26.2 cents (hex27x2 labels; 25.8 with the hex8i ones
 //! before). This is Deep-Modal's shape matching (Jin et
 //! al. 2020, sec. 5.2) used beside the network, with an embedding that does not depend on which
 //! axis the object lies along.
