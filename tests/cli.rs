@@ -578,3 +578,29 @@ fn the_dataset_is_reproducible_and_resumes() {
     }
     assert!(run(a.path()).contains("0 written, 3 kept"));
 }
+
+/// Piped into a reader that quits (`modalforge modes ... | head -1`), the command ends quietly
+/// and successfully, like other command-line tools, instead of reporting an internal error.
+/// The reader's end is closed before the solve (~0.1 s) finishes, so the write finds no reader.
+#[test]
+fn output_to_a_closed_pipe_is_not_an_internal_error() {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_modalforge"))
+        .args([
+            "modes",
+            "--shape",
+            "bowl:d=12,wall=2",
+            "--modes",
+            "20",
+            "--json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the modalforge binary runs");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("it ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    assert!(!stderr.contains("internal error"), "{stderr}");
+}
