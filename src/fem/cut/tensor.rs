@@ -113,7 +113,8 @@ impl Hex27Subcells {
     /// The 1D moments and coefficients for `per_axis` sub-cells per axis and Poisson's ratio
     /// `nu` (`E = 1`).
     pub fn new(per_axis: usize, nu: f64) -> Self {
-        // Three Gauss points per sub-cell integrate the degree-4 products exactly.
+        // Three Gauss points per sub-cell integrate the Legendre polynomials (degree 4 at
+        // most) exactly.
         let (pts, wts) = gauss(3);
         let step = 2.0 / per_axis as f64;
         let moments = (0..per_axis)
