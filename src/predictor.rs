@@ -195,6 +195,27 @@ impl Predictor {
     }
 }
 
+/// The band frequencies `own` with each band replaced by the frequency `found` retrieved for it
+/// where that comes from a shape at most `twin_at` away ([`NEAR_TWIN_DISTANCE`] as played).
+pub fn twin_bands(
+    own: &[Option<f32>; BANDS],
+    found: &pitch_index::Retrieval,
+    twin_at: f32,
+) -> [Option<f32>; BANDS] {
+    std::array::from_fn(|b| match found.band_log_hz[b] {
+        Some(twin) if found.band_distance[b] <= twin_at => Some(twin),
+        _ => own[b],
+    })
+}
+
+/// The presence logit shift of each band: `+presence` where the nearest training shape has a
+/// mode in it, `-presence` where it has none ([`NEIGHBOUR_PRESENCE_LOGIT`] as played).
+pub fn presence_bias(found: &pitch_index::Retrieval, presence: f32) -> [f32; BANDS] {
+    found
+        .nearest_fills
+        .map(|fills| if fills { presence } else { -presence })
+}
+
 /// The head's weights for per-cell evaluation: row-major `OUT_CHANNELS x inputs`, and biases.
 #[derive(Clone, Debug)]
 struct Head {
@@ -235,23 +256,8 @@ impl Prediction {
     /// training shape fills it.
     pub fn retune(&mut self, index: &PitchIndex, grid: &crate::shape::VoxelGrid) {
         let found = index.query(grid);
-        for ((own, twin), distance) in self
-            .band_log_hz
-            .iter_mut()
-            .zip(found.band_log_hz)
-            .zip(found.band_distance)
-        {
-            if twin.is_some() && distance <= NEAR_TWIN_DISTANCE {
-                *own = twin;
-            }
-        }
-        self.bias_bands(&found.nearest_fills.map(|fills| {
-            if fills {
-                NEIGHBOUR_PRESENCE_LOGIT
-            } else {
-                -NEIGHBOUR_PRESENCE_LOGIT
-            }
-        }));
+        self.band_log_hz = twin_bands(&self.band_log_hz, &found, NEAR_TWIN_DISTANCE);
+        self.bias_bands(&presence_bias(&found, NEIGHBOUR_PRESENCE_LOGIT));
     }
 
     /// The head's outputs at one cell: mask logits (the bands' presence logits added, as in

@@ -205,15 +205,21 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
     ))
 }
 
+/// The first `limit` records of a dataset's held-out or training split that decode (a damaged
+/// one is skipped, as training skips it).
+fn decoded_split(data: &Path, held_out: bool, limit: usize) -> Result<Vec<Record>, CliError> {
+    Ok(train::read_split(data, held_out)?
+        .iter()
+        .filter_map(|b| Record::decode(b).ok())
+        .take(limit)
+        .collect())
+}
+
 /// Runs `modalforge predictor eval`.
 pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
     let model = train::load_model(&args.weights, &device)?;
-    let held: Vec<Record> = train::read_split(&args.data, true)?
-        .iter()
-        .filter_map(|b| Record::decode(b).ok())
-        .take(args.limit.unwrap_or(usize::MAX))
-        .collect();
+    let held = decoded_split(&args.data, true, args.limit.unwrap_or(usize::MAX))?;
     if held.is_empty() {
         return Err(CliError::Option(format!(
             "no held-out records under {}: make them with `modalforge dataset --out {}`",
@@ -231,10 +237,7 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         "{played} ({per_shape_ms:.1} ms per shape scored with its pitch index, batches of 8, one thread)\n\
          network alone:  {alone} (the band frequencies from its own head)"
     );
-    let train: Vec<Record> = train::read_split(&args.data, false)?
-        .iter()
-        .filter_map(|b| Record::decode(b).ok())
-        .collect();
+    let train = decoded_split(&args.data, false, usize::MAX)?;
     if train.is_empty() {
         return Ok(format!(
             "network:        {network}\n\
@@ -259,10 +262,7 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
 pub fn sweep_command(args: &SweepArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
     let model = train::load_model(&args.weights, &device)?;
-    let records: Vec<Record> = train::read_split(&args.data, false)?
-        .iter()
-        .filter_map(|b| Record::decode(b).ok())
-        .collect();
+    let records = decoded_split(&args.data, false, usize::MAX)?;
     if records.is_empty() {
         return Err(CliError::Option(format!(
             "no training-split records under {}: make them with `modalforge dataset --out {} \

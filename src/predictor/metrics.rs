@@ -238,31 +238,18 @@ pub fn sweep(
     for chunk in records.chunks(8) {
         let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
         let predicted = super::predict_batch(model, &grids, device);
-        for (p, r) in predicted.into_iter().zip(chunk) {
+        for (mut p, r) in predicted.into_iter().zip(chunk) {
             let found = pitch.query(&r.grid);
-            let gated = |twin_at: f32| {
-                let mut bands = p.band_log_hz;
-                for (b, own) in bands.iter_mut().enumerate() {
-                    if found.band_log_hz[b].is_some() && found.band_distance[b] <= twin_at {
-                        *own = found.band_log_hz[b];
-                    }
-                }
-                bands
-            };
             for (&twin_at, cents) in SWEEP_TWIN.iter().zip(cents.iter_mut()) {
-                cents.extend(band_cents(&gated(twin_at), &r.labels.band_log_hz).0);
+                let bands = super::twin_bands(&p.band_log_hz, &found, twin_at);
+                cents.extend(band_cents(&bands, &r.labels.band_log_hz).0);
             }
             // As played: the shipped near-twin gate.
-            let mut q = p.clone();
-            q.band_log_hz = gated(super::NEAR_TWIN_DISTANCE);
+            p.band_log_hz = super::twin_bands(&p.band_log_hz, &found, super::NEAR_TWIN_DISTANCE);
             let mut k = 0;
             for &presence in &SWEEP_PRESENCE {
-                let mut biased = q.clone();
-                biased.bias_bands(
-                    &found
-                        .nearest_fills
-                        .map(|f| if f { presence } else { -presence }),
-                );
+                let mut biased = p.clone();
+                biased.bias_bands(&super::presence_bias(&found, presence));
                 for &threshold in &SWEEP_THRESHOLDS {
                     scores[k].push(score(&biased.to_encoding_at(threshold), &r.labels));
                     k += 1;
