@@ -190,9 +190,9 @@ fn hex27x2_rings_every_curved_primitive_true() {
     // 8^3 sub-cells (shape::refine), against the smooth solids. The bounds: every
     // degenerate group among the lowest 12 modes within 0.5 % on the 16-voxel bowl and 0.2 %
     // on every other shape (measured 0.15 % and 0.011-0.14 %); the bowl's lowest 10
-    // frequencies within 2 % at 16 voxels and 1 % at 32 (measured +1.69 % and +0.96 %: the
+    // frequencies within 2 % at 16 voxels and 1 % at 32 (measured +1.71 % and +0.98 %: the
     // margin on the 32-voxel bowl is thin, and the computation deterministic). The other thin
-    // walls within 2.5 % (cup +1.98 %, tube +1.28 %, bell +0.56 %; the tube's and cup's
+    // walls within 2.5 % (cup +1.99 %, tube +1.31 %, bell +0.58 %; the tube's and cup's
     // references are converged to about 1 % only, scripts/smooth_reference.py), solids within
     // 0.2 % (measured 0.05-0.08 %). hex8i is 8-11 % sharp on the thin walls.
     for spec in common::smooth::specs() {

@@ -34,7 +34,7 @@ pub const EMPTY_SUBCELL_FLOOR: f64 = 1e-3;
 /// their frequencies against the smooth reference; ARCHITECTURE.md, "Partial voxels"). The
 /// quadratic elements: 8, the stored 4 refined by the fill's plane in each cut sub-cell
 /// ([`crate::shape::refine`]; hex27's fundamental on the 16-voxel bowl is 2.4 / 0.9 / 0.2 %
-/// sharp at 2 / 4 / 8, and hex27x2's worst frequency on the 32-voxel bowl 1.86 % at 4, 0.96 %
+/// sharp at 2 / 4 / 8, and hex27x2's worst frequency on the 32-voxel bowl 1.86 % at 4, 0.98 %
 /// refined to 8). Hex8 with incompatible modes is best at 2 (split 0.74 % / 0.37 %; 1.6 % /
 /// 1.0 % at 4, 1.9 % / 1.2 % at 8: its bubbles follow the lattice, so the finer the cut
 /// geometry, the more its lattice anisotropy shows), and so is plain hex8.

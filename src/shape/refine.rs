@@ -10,8 +10,12 @@
 //! with the normal of Youngs' method, the Sobel-weighted gradient of the fractions, as
 //! [`crate::basis`] uses for strike normals): the surface inside the sub-cell is the plane
 //! across the fill's gradient that leaves exactly its fraction on the solid side, and each
-//! child gets the share of that solid part that falls in it. The children's mean is the
-//! sub-cell's fraction, so volumes are unchanged; full and empty sub-cells stay as they are.
+//! child gets the share of that solid part that falls in it. Both are closed forms: the volume
+//! a plane cuts from a cube and its inverse (Scardovelli and Zaleski 2000, "Analytical
+//! relations connecting linear interfaces and volume fractions in rectangular grids", J.
+//! Comput. Phys. 164; as Basilisk's `plane_volume` and `plane_alpha` write them). The
+//! children's mean is the sub-cell's fraction, so volumes are unchanged; full and empty
+//! sub-cells stay as they are.
 //! On the bowls this recovers what a rasterisation at `8^3` sub-cells gives
 //! (ARCHITECTURE.md, "Partial voxels").
 
@@ -24,8 +28,16 @@ const SPLIT: usize = 2;
 /// Sub-cells per voxel axis after refinement.
 pub const REFINED_PER_AXIS: usize = SUBCELLS_PER_AXIS * SPLIT;
 
-/// Sample points per child axis that place the plane (so `4^3` per sub-cell).
-const SAMPLES: usize = 2;
+/// A stored sub-cell byte as a fraction (`byte / FULL`, exactly as dividing gives it).
+const FRACTION: [f64; 256] = {
+    let mut t = [0.0; 256];
+    let mut b = 0;
+    while b < 256 {
+        t[b] = b as f64 / FULL as f64;
+        b += 1;
+    }
+    t
+};
 
 /// The `8^3` refined sub-cell fractions (x fastest) of the partial voxel `voxel` of `grid`,
 /// into `out`.
@@ -37,49 +49,45 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
     // (n + 2)^3, x fastest.
     let side = n + 2;
     let mut field = [0.0f64; (SUBCELLS_PER_AXIS + 2).pow(3)];
-    // The voxel and its 26 neighbours (`[dz][dy][dx]`, each -1..=1), looked up once.
-    let neighbours: [VoxelFill; 27] = std::array::from_fn(|k| {
+    // Each of the voxel and its 26 neighbours (`[dz][dy][dx]`, each -1..=1) fills its part of
+    // the halo: per axis, offset -1 gives the last sub-cell layer, 0 all of them, +1 the first.
+    for k in 0..27 {
         let d = [k % 3, (k / 3) % 3, k / 9];
-        if d == [1, 1, 1] {
-            return VoxelFill::Partial(*fill);
-        }
-        let v = [0, 1, 2].map(|a| voxel[a] as isize + d[a] as isize - 1);
-        grid.fill_at(v[0], v[1], v[2])
-    });
-    // Halo coordinate `l` (0..n + 2) -> (neighbour offset 0..=2, sub-cell within it).
-    let split_coord = |l: usize| match l {
-        0 => (0, n - 1),
-        l if l <= n => (1, l - 1),
-        _ => (2, 0),
-    };
-    for (i, value) in field.iter_mut().enumerate() {
-        let [(vx, sx), (vy, sy), (vz, sz)] =
-            [i % side, (i / side) % side, i / (side * side)].map(split_coord);
-        *value = match &neighbours[vx + 3 * (vy + 3 * vz)] {
-            VoxelFill::Empty => 0.0,
-            VoxelFill::Full => 1.0,
-            VoxelFill::Partial(f) => f.0[sx + n * (sy + n * sz)] as f64 / FULL as f64,
+        let neighbour = if d == [1, 1, 1] {
+            VoxelFill::Partial(*fill)
+        } else {
+            let v = [0, 1, 2].map(|a| voxel[a] as isize + d[a] as isize - 1);
+            grid.fill_at(v[0], v[1], v[2])
         };
+        // Per axis: the sub-cells taken from the neighbour and where they go in the halo.
+        let range = d.map(|o| match o {
+            0 => (n - 1..n, 0),
+            1 => (0..n, 1),
+            _ => (0..1, n + 1),
+        });
+        for sz in range[2].0.clone() {
+            for sy in range[1].0.clone() {
+                for sx in range[0].0.clone() {
+                    let s = [sx, sy, sz];
+                    let h = [0, 1, 2].map(|a| s[a] - range[a].0.start + range[a].1);
+                    field[h[0] + side * (h[1] + side * h[2])] = match &neighbour {
+                        VoxelFill::Empty => 0.0,
+                        VoxelFill::Full => 1.0,
+                        VoxelFill::Partial(f) => FRACTION[f.0[sx + n * (sy + n * sz)] as usize],
+                    };
+                }
+            }
+        }
     }
-    let at = |c: [usize; 3]| field[c[0] + side * (c[1] + side * c[2])];
-    // The sample points of one sub-cell, in its unit cube, and the child each belongs to.
-    const M: usize = SPLIT * SAMPLES;
-    let points: [([f64; 3], usize); M * M * M] = std::array::from_fn(|k| {
-        let q = [k % M, (k / M) % M, k / (M * M)];
-        let x = q.map(|c| (c as f64 + 0.5) / M as f64);
-        let child = q.map(|c| c / SAMPLES);
-        (x, child[0] + SPLIT * (child[1] + SPLIT * child[2]))
-    });
-    let mut heights = [(0.0, 0usize); M * M * M];
     for sz in 0..n {
         for sy in 0..n {
             for sx in 0..n {
                 let c = [sx + 1, sy + 1, sz + 1];
-                let f = at(c);
+                let f = field[c[0] + side * (c[1] + side * c[2])];
                 let mut children = [f; SPLIT * SPLIT * SPLIT];
                 if f > 0.0 && f < 1.0 {
-                    if let Some(normal) = gradient(&at, c) {
-                        children = split(f, normal, &points, &mut heights);
+                    if let Some(normal) = gradient(&field, c) {
+                        children = split(f, normal);
                     }
                 }
                 for (child, &value) in children.iter().enumerate() {
@@ -96,69 +104,148 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
     }
 }
 
-/// The direction of increasing fill at sub-cell `c` of the halo field (the inward normal of
-/// the surface): the Sobel-weighted central difference over its 3^3 neighbourhood (weights 4,
-/// 2, 1 by how close a neighbour row is). `None` where it vanishes.
-fn gradient(at: &impl Fn([usize; 3]) -> f64, c: [usize; 3]) -> Option<[f64; 3]> {
-    /// Per neighbour (`[dz][dy][dx]`, each 0..3 for -1..=1) and axis: the Sobel weight (4, 2
-    /// or 1 by how many of the other two offsets are non-zero) times the offset along the axis.
-    const WEIGHTS: [[f64; 3]; 27] = {
-        let mut w = [[0.0; 3]; 27];
-        let mut k = 0;
-        while k < 27 {
-            let d = [
-                (k % 3) as i32 - 1,
-                ((k / 3) % 3) as i32 - 1,
-                (k / 9) as i32 - 1,
-            ];
-            let mut a = 0;
-            while a < 3 {
-                let off = (d[(a + 1) % 3] != 0) as usize + (d[(a + 2) % 3] != 0) as usize;
-                w[k][a] = [4.0, 2.0, 1.0][off] * d[a] as f64;
-                a += 1;
-            }
-            k += 1;
-        }
-        w
-    };
+/// The direction of increasing fill at sub-cell `c` of the halo `field` (`(n + 2)^3`, x
+/// fastest; the inward normal of the surface): the Sobel-weighted central difference over its
+/// 3^3 neighbourhood (weights 4, 2, 1 by how close a neighbour row is: the product of 2, 1 per
+/// transverse offset). `None` where it vanishes.
+fn gradient(field: &[f64], c: [usize; 3]) -> Option<[f64; 3]> {
+    const SIDE: usize = SUBCELLS_PER_AXIS + 2;
+    const W: [f64; 3] = [1.0, 2.0, 1.0];
+    let at = |x: usize, y: usize, z: usize| field[x + SIDE * (y + SIDE * z)];
+    let [x, y, z] = c;
     let mut g = [0.0; 3];
-    for (k, w) in WEIGHTS.iter().enumerate() {
-        let f = at([c[0] + k % 3 - 1, c[1] + (k / 3) % 3 - 1, c[2] + k / 9 - 1]);
-        for a in 0..3 {
-            g[a] += w[a] * f;
+    for (j, wj) in W.iter().enumerate() {
+        for (i, wi) in W.iter().enumerate() {
+            let w = wi * wj;
+            // Transverse offsets `i - 1` and `j - 1` (every index is at least 1 here).
+            g[0] += w * (at(x + 1, y + i - 1, z + j - 1) - at(x - 1, y + i - 1, z + j - 1));
+            g[1] += w * (at(x + i - 1, y + 1, z + j - 1) - at(x + i - 1, y - 1, z + j - 1));
+            g[2] += w * (at(x + i - 1, y + j - 1, z + 1) - at(x + i - 1, y + j - 1, z - 1));
         }
     }
     let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
     (norm > 1e-9).then(|| g.map(|x| x / norm))
 }
 
-/// The children's fractions of a sub-cell filled to `f` whose solid side lies along `normal`:
-/// the solid part is the `f` share of the sample points highest along `normal` (the plane
-/// `normal . x = t` that keeps the fraction), counted per child, with the boundary sample
-/// taking the remainder so the children's mean is exactly `f`.
-fn split(
-    f: f64,
-    normal: [f64; 3],
-    points: &[([f64; 3], usize)],
-    heights: &mut [(f64, usize)],
-) -> [f64; SPLIT * SPLIT * SPLIT] {
-    for (h, (x, child)) in heights.iter_mut().zip(points) {
-        *h = (
-            normal[0] * x[0] + normal[1] * x[1] + normal[2] * x[2],
-            *child,
-        );
+/// The volume of `{y in [0,1]^3 : m . y <= alpha}` for `m` sorted ascending, non-negative and
+/// summing to 1 (Scardovelli and Zaleski 2000, eq. 2.8 with its symmetry `V(1 - alpha) = 1 - V`).
+fn plane_volume(m: [f64; 3], alpha: f64) -> f64 {
+    if alpha <= 0.0 {
+        return 0.0;
     }
-    let per_child = (heights.len() / (SPLIT * SPLIT * SPLIT)) as f64;
-    let total = f * heights.len() as f64;
-    // The `whole` highest samples are solid; the next one holds the remainder.
-    let whole = (total.floor() as usize).min(heights.len() - 1);
-    // Highest first (deterministic for the same input).
-    heights.select_nth_unstable_by(whole, |a, b| b.0.total_cmp(&a.0));
+    if alpha >= 1.0 {
+        return 1.0;
+    }
+    let [m1, m2, m3] = m;
+    let a = alpha.min(1.0 - alpha);
+    let m12 = m1 + m2;
+    let v = if a < m1 {
+        a * a * a / (6.0 * m1 * m2 * m3)
+    } else if a < m2 {
+        a * (a - m1) / (2.0 * m2 * m3) + m1 * m1 / (6.0 * m2 * m3)
+    } else if a < m12.min(m3) {
+        (a * a * (3.0 * m12 - a) + m1 * m1 * (m1 - 3.0 * a) + m2 * m2 * (m2 - 3.0 * a))
+            / (6.0 * m1 * m2 * m3)
+    } else if m3 < m12 {
+        (a * a * (3.0 - 2.0 * a)
+            + m1 * m1 * (m1 - 3.0 * a)
+            + m2 * m2 * (m2 - 3.0 * a)
+            + m3 * m3 * (m3 - 3.0 * a))
+            / (6.0 * m1 * m2 * m3)
+    } else {
+        (2.0 * a - m12) / (2.0 * m3)
+    };
+    if alpha <= 0.5 {
+        v
+    } else {
+        1.0 - v
+    }
+}
+
+/// The `alpha` with `plane_volume(m, alpha) = volume` (the inverse of [`plane_volume`], in
+/// closed form: Scardovelli and Zaleski 2000, sec. 3, as Basilisk's `plane_alpha` writes it).
+fn plane_alpha(m: [f64; 3], volume: f64) -> f64 {
+    let [m1, m2, m3] = m;
+    let m12 = m1 + m2;
+    let pr = (6.0 * m1 * m2 * m3).max(1e-50);
+    let v1 = m1 * m1 * m1 / pr;
+    let v2 = v1 + (m2 - m1) / (2.0 * m3);
+    let (mm, v3) = if m3 < m12 {
+        (
+            m3,
+            (m3 * m3 * (3.0 * m12 - m3) + m1 * m1 * (m1 - 3.0 * m3) + m2 * m2 * (m2 - 3.0 * m3))
+                / pr,
+        )
+    } else {
+        (m12, m12 / (2.0 * m3))
+    };
+    let c = volume.min(1.0 - volume);
+    let alpha = if c < v1 {
+        (pr * c).cbrt()
+    } else if c < v2 {
+        (m1 + (m1 * m1 + 8.0 * m2 * m3 * (c - v1)).sqrt()) / 2.0
+    } else if c < v3 {
+        let p12 = (2.0 * m1 * m2).sqrt();
+        let q = 3.0 * (m12 - 2.0 * m3 * c) / (4.0 * p12);
+        let cs = (q.clamp(-1.0, 1.0).acos() / 3.0).cos();
+        p12 * ((3.0 * (1.0 - cs * cs)).sqrt() - cs) + m12
+    } else if m12 <= m3 {
+        m3 * c + mm / 2.0
+    } else {
+        let p = m1 * (m2 + m3) + m2 * m3 - 0.25;
+        let p12 = p.sqrt();
+        let q = 3.0 * m1 * m2 * m3 * (0.5 - c) / (2.0 * p * p12);
+        let cs = (q.clamp(-1.0, 1.0).acos() / 3.0).cos();
+        p12 * ((3.0 * (1.0 - cs * cs)).sqrt() - cs) + 0.5
+    };
+    if volume > 0.5 {
+        1.0 - alpha
+    } else {
+        alpha
+    }
+}
+
+/// The children's fractions of a sub-cell filled to `f` whose solid side lies along `normal`
+/// (unit): the solid part is `normal . x >= t` with `t` placed so that it holds `f` exactly
+/// (PLIC), and each child gets the exact volume of that half-space inside it, rescaled so the
+/// children's mean is exactly `f` where rounding moved it.
+fn split(f: f64, normal: [f64; 3]) -> [f64; SPLIT * SPLIT * SPLIT] {
+    // Mirror the axes with negative components so the normal is non-negative; scale it to sum
+    // 1 (the unit cube's plane-volume formulas take it so), and sort it.
+    let abs = normal.map(f64::abs);
+    let sum = abs[0] + abs[1] + abs[2];
+    let m = abs.map(|c| c / sum);
+    let mut sorted = m;
+    sorted.sort_by(f64::total_cmp);
+    // The empty part is `m . y < alpha` in mirrored coordinates `y`.
+    let alpha = plane_alpha(sorted, 1.0 - f);
     let mut children = [0.0; SPLIT * SPLIT * SPLIT];
-    for &(_, child) in &heights[..whole] {
-        children[child] += 1.0 / per_child;
+    let mut total = 0.0;
+    for (child, value) in children.iter_mut().enumerate() {
+        // The child's lowest corner in mirrored coordinates (0 or 1/2 per axis).
+        let corner: f64 = (0..3)
+            .map(|a| {
+                let upper = (child >> a & 1) == 1;
+                let mirrored = upper != (normal[a] < 0.0);
+                if mirrored {
+                    0.5 * m[a]
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+        *value = 1.0 - plane_volume(sorted, 2.0 * (alpha - corner));
+        total += *value;
     }
-    children[heights[whole].1] += (total - whole as f64) / per_child;
+    let mean = total / children.len() as f64;
+    if mean > f {
+        children.iter_mut().for_each(|c| *c *= f / mean);
+    } else if mean < f {
+        let scale = (1.0 - f) / (1.0 - mean);
+        children
+            .iter_mut()
+            .for_each(|c| *c = 1.0 - (1.0 - *c) * scale);
+    }
     children
 }
 
@@ -177,6 +264,73 @@ mod tests {
         let mut out = vec![0.0; REFINED_PER_AXIS.pow(3)];
         refined_fill(&grid, voxel, &fill, &mut out);
         out
+    }
+
+    #[test]
+    fn the_plane_volume_and_its_inverse_match_closed_forms() {
+        // Independent truths for the cube cut by `m . y <= alpha` (`m` summing to 1): an
+        // axis plane cuts a slab of volume `alpha`; an edge-diagonal one a prism of volume
+        // `2 alpha^2` (alpha <= 1/2); the body diagonal a corner tetrahedron `(3 alpha)^3 / 6`
+        // (alpha <= 1/3). The formulas are exact, so the bound is rounding (1e-12).
+        let third = 1.0 / 3.0;
+        for a in [0.05f64, 0.2, 0.3, 0.45] {
+            // (normal, alpha, the exact volume)
+            let body = 2.0 * a / 3.0;
+            let cases = [
+                ([0.0, 0.0, 1.0], a, a),
+                ([0.0, 0.5, 0.5], a, 2.0 * a * a),
+                ([third, third, third], body, (3.0 * body).powi(3) / 6.0),
+            ];
+            for (m, alpha, want) in cases {
+                let got = plane_volume(m, alpha);
+                assert!((got - want).abs() < 1e-12, "{m:?} {alpha}: {got} vs {want}");
+                // The mirror image: the rest of the cube.
+                let rest = plane_volume(m, 1.0 - alpha);
+                assert!((rest - (1.0 - want)).abs() < 1e-12, "{m:?}: {rest}");
+            }
+        }
+        // The inverse round-trips for every kind of normal, degenerate ones included.
+        let normals = [
+            [0.0, 0.0, 1.0],
+            [0.0, 0.3, 0.7],
+            [1e-9, 0.4, 0.6 - 1e-9],
+            [0.1, 0.2, 0.7],
+            [0.2, 0.3, 0.5],
+            [third, third, third],
+        ];
+        for m in normals {
+            for k in 1..100 {
+                let volume = k as f64 / 100.0;
+                let alpha = plane_alpha(m, volume);
+                let back = plane_volume(m, alpha);
+                assert!((back - volume).abs() < 1e-9, "{m:?} {volume}: {back}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_split_puts_the_solid_where_the_plane_does() {
+        // A sub-cell 30 % full on its +z side: the plane is z = 0.7, so the four upper
+        // children hold 0.3 / 0.5 = 0.6 and the lower ones nothing. Along the diagonal
+        // (1, 1, 0) / sqrt(2) half full: the plane x + y = 1 leaves the (+x, +y) children
+        // full, the (-x, -y) ones empty and the other two half full.
+        let got = split(0.3, [0.0, 0.0, 1.0]);
+        for (child, v) in got.iter().enumerate() {
+            let want = if child >= 4 { 0.6 } else { 0.0 };
+            assert!((v - want).abs() < 1e-12, "child {child}: {v}");
+        }
+        let d = std::f64::consts::FRAC_1_SQRT_2;
+        let got = split(0.5, [d, d, 0.0]);
+        for (child, v) in got.iter().enumerate() {
+            let want = [0.0, 0.5, 0.5, 1.0][child % 4];
+            assert!((v - want).abs() < 1e-12, "child {child}: {v}");
+        }
+        // A mirrored normal mirrors the children.
+        let up = split(0.2, [0.3, -0.5, 0.81]);
+        let down = split(0.2, [0.3, 0.5, 0.81]);
+        for child in 0..8 {
+            assert!((up[child] - down[child ^ 2]).abs() < 1e-12);
+        }
     }
 
     #[test]
