@@ -44,8 +44,9 @@ pub struct FemModel {
     /// The elements' cells: the solid voxels, or for [`ElementKind::Hex27Blocks`] the blocks
     /// (in block coordinates, [`FemModel::cell_dims`]), in element order.
     pub voxels: Vec<[usize; 3]>,
-    /// For [`ElementKind::Hex27Blocks`], a fingerprint of each element's voxel fills (what a
-    /// stroke inside a block changes without changing the blocks); empty otherwise.
+    /// A fingerprint of each element's voxel fills: what a stroke that refills a partial voxel,
+    /// or (for [`ElementKind::Hex27Blocks`]) changes a voxel inside a block, changes without
+    /// changing the cells ([`crate::eigen::warm`] finds the edit by it).
     pub cell_fills: Vec<u64>,
     /// Block sparsity shared by `K` and `M`.
     pub pattern: BlockPattern,
@@ -178,7 +179,7 @@ impl FemModel {
             pending.clear();
         };
         let mut unit_slots = vec![0usize; nloc * nloc];
-        let mut cell_fills = Vec::with_capacity(if block > 1 { voxels.len() } else { 0 });
+        let mut cell_fills = Vec::with_capacity(voxels.len());
         for (e, v) in voxels.iter().enumerate() {
             let nodes = &elements[e * nloc..(e + 1) * nloc];
             let partial = if block == 1 {
@@ -187,13 +188,15 @@ impl FemModel {
             } else {
                 None
             };
-            let is_cut = if block == 1 {
-                partial.is_some()
+            let (full, fingerprint) = if block == 1 {
+                // (`partial` is the voxel's fill: a binary grid has none.)
+                let fill = partial.map_or(VoxelFill::Full, |f| VoxelFill::Partial(*f));
+                (partial.is_none(), fill_fingerprint([fill]))
             } else {
-                let (full, fingerprint) = block_state(grid, *v, block);
-                cell_fills.push(fingerprint);
-                !full
+                block_state(grid, *v, block)
             };
+            cell_fills.push(fingerprint);
+            let is_cut = !full;
             if !is_cut {
                 let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
                 sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
@@ -330,35 +333,35 @@ pub fn element_cells(grid: &VoxelGrid, kind: ElementKind) -> Vec<[usize; 3]> {
 }
 
 /// Whether every voxel of the `block^3` voxels from `cell * block` is full (the unit element
-/// applies), and a fingerprint of the voxels' fills (FNV-1a over their states and sub-cell
-/// bytes).
+/// applies), and their fills' [`fill_fingerprint`].
 fn block_state(grid: &VoxelGrid, cell: [usize; 3], block: usize) -> (bool, u64) {
+    let fills = (0..block.pow(3)).map(|o| {
+        let d = [o % block, (o / block) % block, o / (block * block)];
+        let v = [0, 1, 2].map(|a| (cell[a] * block + d[a]) as isize);
+        grid.fill_at(v[0], v[1], v[2])
+    });
     let mut full = true;
+    let fingerprint = fill_fingerprint(fills.inspect(|f| full &= *f == VoxelFill::Full));
+    (full, fingerprint)
+}
+
+/// A fingerprint of voxel fills (FNV-1a over their states and sub-cell bytes).
+fn fill_fingerprint(fills: impl IntoIterator<Item = VoxelFill>) -> u64 {
     let mut fingerprint: u64 = 0xcbf2_9ce4_8422_2325;
     let mut mix = |byte: u8| {
         fingerprint = (fingerprint ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
     };
-    for oz in 0..block {
-        for oy in 0..block {
-            for ox in 0..block {
-                let fill = grid.fill_at(
-                    (cell[0] * block + ox) as isize,
-                    (cell[1] * block + oy) as isize,
-                    (cell[2] * block + oz) as isize,
-                );
-                match fill {
-                    VoxelFill::Empty => mix(0),
-                    VoxelFill::Full => mix(1),
-                    VoxelFill::Partial(f) => {
-                        mix(2);
-                        f.0.iter().for_each(|&b| mix(b));
-                    }
-                }
-                full &= fill == VoxelFill::Full;
+    for fill in fills {
+        match fill {
+            VoxelFill::Empty => mix(0),
+            VoxelFill::Full => mix(1),
+            VoxelFill::Partial(f) => {
+                mix(2);
+                f.0.iter().for_each(|&b| mix(b));
             }
         }
     }
-    (full, fingerprint)
+    fingerprint
 }
 
 /// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the

@@ -147,13 +147,23 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
             assert!(err < 1e-3, "{kind}: carried vs cold: {err:.1e}");
             // Its residuals come from the products Rayleigh-Ritz already made (and the patch's
             // rows): the same as recomputed from K and M, to rounding relative to residuals
-            // of 1e-5 to 1e-2 (a missing or mis-transposed patch term is of their own size).
+            // of 1e-5 to 1e-2 (a missing or mis-transposed patch term is of their own size),
+            // plus what the stiffness images inherit from the previous solve away from the
+            // edit (`K x = lambda M x` to its residual, eigen/warm/images.rs): at most 10x the
+            // previous largest residual (here 1.4e-6 to 8.7e-6 after the warm solves, loose:
+            // the differences measured were about 1e-11).
             let sol = &carried.solution;
             let explicit = Operators::new(&carried.model)
                 .block_residuals(&sol.eigenvalues, sol.vectors.as_ref());
+            let inherited = 10.0
+                * previous
+                    .solution
+                    .residuals
+                    .iter()
+                    .fold(0.0f64, |a, &r| a.max(r));
             for (got, want) in sol.residuals.iter().zip(&explicit) {
                 assert!(
-                    (got - want).abs() <= 1e-6 * want,
+                    (got - want).abs() <= 1e-6 * want + inherited,
                     "{kind}: residual {got:e} vs explicit {want:e}"
                 );
             }

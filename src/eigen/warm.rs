@@ -5,7 +5,8 @@
 //! 2022 eq. 6). Two answers start from the previous shape's solution:
 //! - [`ritz`], the instant one ([`crate::basis::ModeBasis::carried_ritz`], played by the
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
-//!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation;
+//!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation, and
+//!   their stiffness images from the eigen relation away from the edit (`warm/images.rs`);
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
@@ -28,6 +29,8 @@
 //!    number of rigid-body modes (the edit split the object), falls back to shift-invert
 //!    Lanczos on the same factor: a cold solve, no slower than without the warm start but for
 //!    the iterations spent.
+
+mod images;
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
@@ -284,9 +287,20 @@ pub fn ritz(
             carried.block[i * carried.columns + j - fields]
         }
     });
-    let kx = ops.apply_block(super::Which::K, x.as_ref());
     let mx = ops.apply_block(super::Which::M, x.as_ref());
-    let mut gk = x.transpose() * &kx;
+    let kx = images::stiffness_images(
+        &ops,
+        previous,
+        next,
+        offset,
+        previous_solution,
+        &x,
+        &mx,
+        fields,
+    );
+    let gk = x.transpose() * &kx;
+    // Symmetric but for the carried modes' residuals, which `images` leaves in `K X`.
+    let mut gk = Mat::from_fn(w, w, |i, j| 0.5 * (gk[(i, j)] + gk[(j, i)]));
     let mut gm = x.transpose() * &mx;
     let correction =
         edit_patch(previous, next, offset).and_then(|p| local_correction(&ops, &p, &x, &kx, &mx));
@@ -419,12 +433,36 @@ const PATCH_RADIUS: i64 = 2;
 const MAX_PATCH_DOFS: usize = 1500;
 
 /// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
-/// added or removed (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block of a block
-/// added, removed or refilled). `None` if nothing changed or the patch is too large to relax
+/// added, removed or refilled (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block
+/// of such a block). `None` if nothing changed or the patch is too large to relax
 /// densely.
 fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<Vec<usize>> {
+    let edited = edited_cells(previous, next, offset).filter(|e| !e.is_empty())?;
+    let block = next.kind.voxels_per_element() as i64;
+    let radius = (PATCH_RADIUS + block - 1) / block;
+    let p = next.kind.order() as i64;
+    let nodes: Vec<usize> = (0..next.nodes())
+        .filter(|&node| {
+            let q = next.node_lattice_coords(node);
+            edited.iter().any(|v| {
+                (0..3).all(|a| q[a] >= p * (v[a] - radius) && q[a] <= p * (v[a] + 1 + radius))
+            })
+        })
+        .collect();
+    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+}
+
+/// The cells (in `next`'s cell coordinates) that an edit added, removed or refilled: the
+/// symmetric difference of the two models' cells with their fills' fingerprints
+/// ([`FemModel::cell_fills`]; `previous`'s cells moved by `offset`). `None` when more than
+/// [`MAX_EDITED_CELLS`] changed (not a brush stroke).
+fn edited_cells(
+    previous: &FemModel,
+    next: &FemModel,
+    offset: [i64; 3],
+) -> Option<std::collections::HashSet<[i64; 3]>> {
     use std::collections::HashSet;
-    // A cell and its fill's fingerprint (0 where the model keeps none: one element per voxel).
+    // A cell and its fill's fingerprint (0 where the model keeps none).
     let fingerprint = |m: &FemModel, e: usize| m.cell_fills.get(e).copied().unwrap_or(0);
     let old: HashSet<([i64; 3], u64)> = previous
         .voxels
@@ -442,22 +480,11 @@ fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<
         .map(|(e, v)| (v.map(|c| c as i64), fingerprint(next, e)))
         .collect();
     let edited: HashSet<[i64; 3]> = old.symmetric_difference(&new).map(|(c, _)| *c).collect();
-    if edited.is_empty() || edited.len() > 64 {
-        return None;
-    }
-    let block = next.kind.voxels_per_element() as i64;
-    let radius = (PATCH_RADIUS + block - 1) / block;
-    let p = next.kind.order() as i64;
-    let nodes: Vec<usize> = (0..next.nodes())
-        .filter(|&node| {
-            let q = next.node_lattice_coords(node);
-            edited.iter().any(|v| {
-                (0..3).all(|a| q[a] >= p * (v[a] - radius) && q[a] <= p * (v[a] + 1 + radius))
-            })
-        })
-        .collect();
-    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+    (edited.len() <= MAX_EDITED_CELLS).then_some(edited)
 }
+
+/// The most cells a stroke may change for the instant answer to treat it locally.
+const MAX_EDITED_CELLS: usize = 64;
 
 /// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
 struct Correction {
