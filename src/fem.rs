@@ -196,8 +196,7 @@ impl FemModel {
                 block_state(grid, *v, block)
             };
             cell_fills.push(fingerprint);
-            let is_cut = !full;
-            if !is_cut {
+            if full {
                 let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
                 sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
                 continue;

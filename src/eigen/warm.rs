@@ -41,6 +41,7 @@ use super::{
 };
 use crate::fem::FemModel;
 use faer::{Mat, MatRef, Par};
+use std::collections::HashSet;
 use std::time::Instant;
 
 /// LOBPCG iterations a warm start may take before the solve falls back to Lanczos. Measured
@@ -287,12 +288,12 @@ pub fn ritz(
             carried.block[i * carried.columns + j - fields]
         }
     });
+    let edited = edited_cells(previous, next, offset);
     let mx = ops.apply_block(super::Which::M, x.as_ref());
     let kx = images::stiffness_images(
         &ops,
-        previous,
         next,
-        offset,
+        edited.as_ref(),
         previous_solution,
         &x,
         &mx,
@@ -302,8 +303,10 @@ pub fn ritz(
     // Symmetric but for the carried modes' residuals, which `images` leaves in `K X`.
     let mut gk = Mat::from_fn(w, w, |i, j| 0.5 * (gk[(i, j)] + gk[(j, i)]));
     let mut gm = x.transpose() * &mx;
-    let correction =
-        edit_patch(previous, next, offset).and_then(|p| local_correction(&ops, &p, &x, &kx, &mx));
+    let correction = edited
+        .as_ref()
+        .and_then(|e| edit_patch(next, e))
+        .and_then(|p| local_correction(&ops, &p, &x, &kx, &mx));
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
         // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
@@ -434,10 +437,12 @@ const MAX_PATCH_DOFS: usize = 1500;
 
 /// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
 /// added, removed or refilled (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block
-/// of such a block). `None` if nothing changed or the patch is too large to relax
-/// densely.
-fn edit_patch(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<Vec<usize>> {
-    let edited = edited_cells(previous, next, offset).filter(|e| !e.is_empty())?;
+/// of such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
+/// patch is too large to relax densely.
+fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
+    if edited.is_empty() {
+        return None;
+    }
     let block = next.kind.voxels_per_element() as i64;
     let radius = (PATCH_RADIUS + block - 1) / block;
     let p = next.kind.order() as i64;
@@ -460,8 +465,7 @@ fn edited_cells(
     previous: &FemModel,
     next: &FemModel,
     offset: [i64; 3],
-) -> Option<std::collections::HashSet<[i64; 3]>> {
-    use std::collections::HashSet;
+) -> Option<HashSet<[i64; 3]>> {
     // A cell and its fill's fingerprint (0 where the model keeps none).
     let fingerprint = |m: &FemModel, e: usize| m.cell_fills.get(e).copied().unwrap_or(0);
     let old: HashSet<([i64; 3], u64)> = previous

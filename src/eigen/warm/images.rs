@@ -19,23 +19,23 @@
 //! three orders below what the carried answer is accurate to (1e-5 to 3e-3).
 
 use super::super::{EigenSolution, Operators, Which};
-use super::{edited_cells, extra_rigid};
+use super::extra_rigid;
 use crate::fem::FemModel;
 use faer::Mat;
+use std::collections::HashSet;
 
 /// A carried mode whose residual was at most this (the default solver tolerance) is taken as
 /// an eigenpair of the previous shape; above it (an approximate answer) it is multiplied out.
 pub(super) const RELATION_MAX_RESIDUAL: f64 = 1e-6;
 
 /// `K X` on `next` for the instant answer's block `X` (`x`, `n x w`: `fields` rigid fields,
-/// then the carried columns of [`super::previous_columns`]), given `M X` (`mx`). See the
-/// module docs; falls back to the whole product where the edit cannot be told apart.
-#[allow(clippy::too_many_arguments)]
+/// then the carried columns of [`super::previous_columns`]), given `M X` (`mx`) and the cells
+/// the edit changed ([`super::edited_cells`]). See the module docs; the whole product where
+/// the edit is too large to tell apart (`edited` is `None`).
 pub(super) fn stiffness_images(
     ops: &Operators,
-    previous: &FemModel,
     next: &FemModel,
-    offset: [i64; 3],
+    edited: Option<&HashSet<[i64; 3]>>,
     previous_solution: &EigenSolution,
     x: &Mat<f64>,
     mx: &Mat<f64>,
@@ -53,9 +53,9 @@ pub(super) fn stiffness_images(
         })
         .collect();
     let related: Vec<usize> = (0..w).filter(|&j| lambda[j].is_some()).collect();
-    let Some(rows) = (!related.is_empty())
-        .then(|| touched_nodes(previous, next, offset))
-        .flatten()
+    let Some(rows) = edited
+        .filter(|_| !related.is_empty())
+        .and_then(|e| touched_nodes(next, e))
     else {
         return ops.apply_block(Which::K, x.as_ref());
     };
@@ -109,11 +109,10 @@ pub(super) fn stiffness_images(
 }
 
 /// The nodes of `next` whose rows of `K` may differ from the previous shape's: those of every
-/// element within one cell of an edited cell ([`edited_cells`]; one cell more because a
-/// quadratic cut element's refined fill reads its neighbours' fills, `shape::refine`). `None`
-/// where the edit is too large to be worth it (more than a quarter of the nodes).
-fn touched_nodes(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Option<Vec<usize>> {
-    let edited = edited_cells(previous, next, offset)?;
+/// element within one cell of an `edited` cell (one cell more because a quadratic cut
+/// element's refined fill reads its neighbours' fills, `shape::refine`). `None` where the edit
+/// is too large to be worth it (more than a quarter of the nodes).
+fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
     let p = next.kind.order() as i64;
     let nodes: Vec<usize> = (0..next.nodes())
         .filter(|&node| {
@@ -172,8 +171,12 @@ mod tests {
         });
         let mx = ops.apply_block(Which::M, x.as_ref());
         let want = ops.apply_block(Which::K, x.as_ref());
-        assert!(touched_nodes(&previous, &next, offset).is_some_and(|r| !r.is_empty()));
-        let got = stiffness_images(&ops, &previous, &next, offset, &solution, &x, &mx, 6);
+        let edited = super::super::edited_cells(&previous, &next, offset);
+        assert!(edited
+            .as_ref()
+            .and_then(|e| touched_nodes(&next, e))
+            .is_some_and(|r| !r.is_empty()));
+        let got = stiffness_images(&ops, &next, edited.as_ref(), &solution, &x, &mx, 6);
         for j in 0..w {
             let (mut diff, mut norm) = (0.0f64, 0.0f64);
             for i in 0..n {
