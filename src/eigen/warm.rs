@@ -444,17 +444,22 @@ fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>>
         return None;
     }
     let block = next.kind.voxels_per_element() as i64;
-    let radius = (PATCH_RADIUS + block - 1) / block;
+    let nodes = nodes_near(next, edited, (PATCH_RADIUS + block - 1) / block);
+    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+}
+
+/// The nodes of `next` on the elements within `radius` cells (Chebyshev distance) of an
+/// `edited` cell: the lattice points of the closed box around each.
+fn nodes_near(next: &FemModel, edited: &HashSet<[i64; 3]>, radius: i64) -> Vec<usize> {
     let p = next.kind.order() as i64;
-    let nodes: Vec<usize> = (0..next.nodes())
+    (0..next.nodes())
         .filter(|&node| {
             let q = next.node_lattice_coords(node);
             edited.iter().any(|v| {
                 (0..3).all(|a| q[a] >= p * (v[a] - radius) && q[a] <= p * (v[a] + 1 + radius))
             })
         })
-        .collect();
-    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+        .collect()
 }
 
 /// The cells (in `next`'s cell coordinates) that an edit added, removed or refilled: the

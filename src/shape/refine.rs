@@ -28,6 +28,9 @@ const SPLIT: usize = 2;
 /// Sub-cells per voxel axis after refinement.
 pub const REFINED_PER_AXIS: usize = SUBCELLS_PER_AXIS * SPLIT;
 
+/// Sub-cells per axis of the halo field: a voxel's and one layer from each neighbour.
+const HALO_SIDE: usize = SUBCELLS_PER_AXIS + 2;
+
 /// A stored sub-cell byte as a fraction (`byte / FULL`, exactly as dividing gives it).
 const FRACTION: [f64; 256] = {
     let mut t = [0.0; 256];
@@ -47,8 +50,8 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
     assert_eq!(out.len(), r * r * r, "8^3 refined sub-cells");
     // The fractions of this voxel's sub-cells and a one-sub-cell halo from its neighbours,
     // (n + 2)^3, x fastest.
-    let side = n + 2;
-    let mut field = [0.0f64; (SUBCELLS_PER_AXIS + 2).pow(3)];
+    let side = HALO_SIDE;
+    let mut field = [0.0f64; HALO_SIDE.pow(3)];
     // Each of the voxel and its 26 neighbours (`[dz][dy][dx]`, each -1..=1) fills its part of
     // the halo: per axis, offset -1 gives the last sub-cell layer, 0 all of them, +1 the first.
     for k in 0..27 {
@@ -109,9 +112,8 @@ pub fn refined_fill(grid: &VoxelGrid, voxel: [usize; 3], fill: &SubFill, out: &m
 /// 3^3 neighbourhood (weights 4, 2, 1 by how close a neighbour row is: the product of 2, 1 per
 /// transverse offset). `None` where it vanishes.
 fn gradient(field: &[f64], c: [usize; 3]) -> Option<[f64; 3]> {
-    const SIDE: usize = SUBCELLS_PER_AXIS + 2;
     const W: [f64; 3] = [1.0, 2.0, 1.0];
-    let at = |x: usize, y: usize, z: usize| field[x + SIDE * (y + SIDE * z)];
+    let at = |x: usize, y: usize, z: usize| field[x + HALO_SIDE * (y + HALO_SIDE * z)];
     let [x, y, z] = c;
     let mut g = [0.0; 3];
     for (j, wj) in W.iter().enumerate() {

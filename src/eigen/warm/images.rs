@@ -19,7 +19,7 @@
 //! three orders below what the carried answer is accurate to (1e-5 to 3e-3).
 
 use super::super::{EigenSolution, Operators, Which};
-use super::extra_rigid;
+use super::{extra_rigid, nodes_near};
 use crate::fem::FemModel;
 use faer::Mat;
 use std::collections::HashSet;
@@ -113,15 +113,7 @@ pub(super) fn stiffness_images(
 /// element's refined fill reads its neighbours' fills, `shape::refine`). `None` where the edit
 /// is too large to be worth it (more than a quarter of the nodes).
 fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
-    let p = next.kind.order() as i64;
-    let nodes: Vec<usize> = (0..next.nodes())
-        .filter(|&node| {
-            let q = next.node_lattice_coords(node);
-            edited
-                .iter()
-                .any(|v| (0..3).all(|a| q[a] >= p * (v[a] - 1) && q[a] <= p * (v[a] + 2)))
-        })
-        .collect();
+    let nodes = nodes_near(next, edited, 1);
     (4 * nodes.len() <= next.nodes()).then_some(nodes)
 }
 
