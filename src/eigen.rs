@@ -226,6 +226,9 @@ pub struct Operators<'a> {
     pub k_norm: f64,
     /// Infinity norm of M.
     pub m_norm: f64,
+    /// Every block of `M` is a scalar times the identity ([`sparse::is_scalar_blocks`]: every
+    /// assembled model's is), so `M X` takes the three-times-cheaper [`sparse::spmm_scalar`].
+    pub m_scalar: bool,
     /// `trace K / trace M`: the scale of the spectrum.
     pub scale: f64,
 }
@@ -244,6 +247,7 @@ impl<'a> Operators<'a> {
             m,
             k_norm: sparse::norm_inf(p, k),
             m_norm: sparse::norm_inf(p, m),
+            m_scalar: sparse::is_scalar_blocks(m),
             scale: sparse::trace(p, k) / sparse::trace(p, m),
         }
     }
@@ -292,13 +296,32 @@ impl<'a> Operators<'a> {
                 rows[i * w + j] = *v;
             }
         }
+        self.apply_rows(which, &rows, w)
+    }
+
+    /// [`Operators::apply_block`] for a block given by rows (`x[i * w + j]`: DOF `i` of column
+    /// `j`), as its callers often build it; the product comes back column-major.
+    pub fn apply_rows(&self, which: Which, x: &[f64], w: usize) -> Mat<f64> {
+        let n = self.dofs();
         let mut out = vec![0.0; n * w];
-        let a = match which {
-            Which::K => self.k,
-            Which::M => self.m,
-        };
-        sparse::spmm(self.pattern, a, &rows, &mut out, sparse::RowBlock::dense(w));
-        Mat::from_fn(n, w, |i, j| out[i * w + j])
+        self.spmm(which, x, &mut out, sparse::RowBlock::dense(w));
+        let mut y = Mat::<f64>::zeros(n, w);
+        for j in 0..w {
+            for (i, v) in y.col_mut(j).iter_mut().enumerate() {
+                *v = out[i * w + j];
+            }
+        }
+        y
+    }
+
+    /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]; the mass through
+    /// [`sparse::spmm_scalar`] where its blocks allow).
+    pub fn spmm(&self, which: Which, x: &[f64], y: &mut [f64], layout: sparse::RowBlock) {
+        match which {
+            Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
+            Which::M if self.m_scalar => sparse::spmm_scalar(self.pattern, self.m, x, y, layout),
+            Which::M => sparse::spmm(self.pattern, self.m, x, y, layout),
+        }
     }
 
     /// Residuals (Jin et al. 2022, eq. 6) of the pairs `(lambdas[j], x[:, j])`, by block products.

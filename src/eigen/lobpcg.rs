@@ -25,10 +25,10 @@
 use super::multigrid::Multigrid;
 use super::{
     lanczos, random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution,
-    ModeCount, Operators, SolveTimings,
+    ModeCount, Operators, SolveTimings, Which,
 };
 use crate::buffer::zeroed;
-use crate::fem::sparse::{self, RowBlock};
+use crate::fem::sparse::RowBlock;
 use crate::fem::FemModel;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -165,8 +165,8 @@ impl Images {
             return;
         }
         let f = self.first;
-        sparse::spmm(ops.pattern, ops.k, &self.x[f..], &mut self.kx[f..], l);
-        sparse::spmm(ops.pattern, ops.m, &self.x[f..], &mut self.mx[f..], l);
+        ops.spmm(Which::K, &self.x[f..], &mut self.kx[f..], l);
+        ops.spmm(Which::M, &self.x[f..], &mut self.mx[f..], l);
     }
 
     /// Copies columns `cols` of all three buffers from `src` (same shape).

@@ -30,6 +30,7 @@
 //!    Lanczos on the same factor: a cold solve, no slower than without the warm start but for
 //!    the iterations spent.
 
+mod correction;
 mod images;
 
 use super::factor::ShiftedCholesky;
@@ -281,32 +282,41 @@ pub fn ritz(
         });
     }
     let rigid = rigid_fields(next);
-    let x = Mat::from_fn(n, w, |i, j| {
-        if j < fields {
-            rigid[i * 6 + j]
-        } else {
-            carried.block[i * carried.columns + j - fields]
+    // The block by rows (as `transfer` gives it), then by columns.
+    let cc = carried.columns;
+    let mut x_rows = vec![0.0; n * w];
+    for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
+        row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
+        row[fields..].copy_from_slice(&carried.block[i * cc..(i + 1) * cc]);
+    }
+    let mut x = Mat::<f64>::zeros(n, w);
+    for j in 0..w {
+        for (i, v) in x.col_mut(j).iter_mut().enumerate() {
+            *v = x_rows[i * w + j];
         }
-    });
+    }
     let edited = edited_cells(previous, next, offset);
-    let mx = ops.apply_block(super::Which::M, x.as_ref());
+    let mx = ops.apply_rows(super::Which::M, &x_rows, w);
     let kx = images::stiffness_images(
         &ops,
         next,
         edited.as_ref(),
         previous_solution,
-        &x,
+        &x_rows,
         &mx,
         fields,
     );
-    let gk = x.transpose() * &kx;
-    // Symmetric but for the carried modes' residuals, which `images` leaves in `K X`.
-    let mut gk = Mat::from_fn(w, w, |i, j| 0.5 * (gk[(i, j)] + gk[(j, i)]));
-    let mut gm = x.transpose() * &mx;
+    // (`X^T K X` is symmetric but for the carried modes' residuals, which `images` leaves in
+    // `K X`: one triangle of it serves.)
+    let mut gk = gram(&x, &kx);
+    let mut gm = gram(&x, &mx);
     let correction = edited
         .as_ref()
         .and_then(|e| edit_patch(next, e))
-        .and_then(|p| local_correction(&ops, &p, &x, &kx, &mx));
+        .and_then(|p| {
+            let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
+            correction::local_correction(&ops, next, &p, &theta, &kx, &mx)
+        });
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
         // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
@@ -341,7 +351,7 @@ pub fn ritz(
                 vectors[(d, j)] += local[(i, j)];
             }
         }
-        add_patch_images(&ops, &cor.dofs, &local, &mut kv, &mut mv);
+        cor.add_images(&ops, &local, &mut kv, &mut mv);
     }
     let residuals = residuals_from_images(&ops, &theta, &vectors, &kv, &mv);
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, residuals[j])).collect();
@@ -371,35 +381,29 @@ pub fn ritz(
     Ok(out)
 }
 
-/// Adds `K D` and `M D` to `kv` and `mv`, where `D` is `local` on the patch DOFs `dofs` (whole
-/// nodes, in node order of three) and zero elsewhere: only the rows coupled to the patch change.
-/// `K` is symmetric, so the block of row `r`, column `a` is the transposed block of row `a`.
-fn add_patch_images(
-    ops: &Operators,
-    dofs: &[usize],
-    local: &Mat<f64>,
-    kv: &mut Mat<f64>,
-    mv: &mut Mat<f64>,
-) {
-    for (i, node) in dofs.chunks_exact(3).map(|d| d[0] / 3).enumerate() {
-        for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
-            let r = ops.pattern.col[b] as usize;
-            let (kb, mb) = (&ops.k[b], &ops.m[b]);
-            for j in 0..local.ncols() {
-                let d = [0, 1, 2].map(|c| local[(3 * i + c, j)]);
-                for row in 0..3 {
-                    // (A_ar)^T d: column `row` of the stored block.
-                    let (mut ks, mut ms) = (0.0, 0.0);
-                    for c in 0..3 {
-                        ks += kb[3 * c + row] * d[c];
-                        ms += mb[3 * c + row] * d[c];
-                    }
-                    kv[(3 * r + row, j)] += ks;
-                    mv[(3 * r + row, j)] += ms;
-                }
-            }
+/// The symmetric Gram matrix `X^T Y` (`Y = A X` for a symmetric `A`) from its lower triangle
+/// alone: half the work of the whole product.
+fn gram(x: &Mat<f64>, y: &Mat<f64>) -> Mat<f64> {
+    use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+    let w = x.ncols();
+    let mut g = Mat::<f64>::zeros(w, w);
+    matmul(
+        g.as_mut(),
+        BlockStructure::TriangularLower,
+        faer::Accum::Replace,
+        x.transpose(),
+        BlockStructure::Rectangular,
+        y,
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    for j in 0..w {
+        for i in 0..j {
+            g[(i, j)] = g[(j, i)];
         }
     }
+    g
 }
 
 /// Residuals (Jin et al. 2022, eq. 6) of the pairs `(theta[j], v[:, j])` from their images
@@ -429,16 +433,17 @@ fn residuals_from_images(
 const RITZ_GUARDS: usize = 8;
 
 /// Voxels (Chebyshev distance) around an edited voxel whose nodes are relaxed by
-/// [`local_correction`].
+/// [`correction::local_correction`].
 const PATCH_RADIUS: i64 = 2;
 
-/// Largest relaxed patch, in DOFs (its dense Cholesky costs `dofs^3 / 3`).
+/// Largest relaxed patch, in DOFs (a brush stroke's is a few hundred; beyond this the edit is no
+/// stroke and its factor would cost more than the carried answer saves).
 const MAX_PATCH_DOFS: usize = 1500;
 
 /// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
 /// added, removed or refilled (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block
 /// of such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
-/// patch is too large to relax densely.
+/// patch is too large to relax.
 fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
     if edited.is_empty() {
         return None;
@@ -494,85 +499,6 @@ fn edited_cells(
 
 /// The most cells a stroke may change for the instant answer to treat it locally.
 const MAX_EDITED_CELLS: usize = 64;
-
-/// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
-struct Correction {
-    /// The patch's DOFs.
-    dofs: Vec<usize>,
-    /// One correction per carried column, on the patch DOFs.
-    delta: Mat<f64>,
-    /// `K_pp delta` and `M_pp delta`.
-    k_delta: Mat<f64>,
-    m_delta: Mat<f64>,
-}
-
-/// Static local corrections of the carried vectors: for each column `x` with Rayleigh quotient
-/// `theta`, `delta = -K_pp^-1 (K x - theta M x)_p` on the patch nodes `p`, the rest held fixed
-/// (a Dirichlet problem: one block-Jacobi step of the subdomain around the edit, as in
-/// Schwarz methods). A stroke changes the stress near it; without this the carried answer's
-/// frequencies were 0.2-0.7 % off (`tests/warm_start.rs`). `None` if `K_pp` is not positive
-/// definite (the patch is a whole part of the object).
-fn local_correction(
-    ops: &Operators,
-    patch: &[usize],
-    x: &Mat<f64>,
-    kx: &Mat<f64>,
-    mx: &Mat<f64>,
-) -> Option<Correction> {
-    let np = patch.len();
-    let mut local = vec![usize::MAX; ops.pattern.nodes()];
-    for (i, &node) in patch.iter().enumerate() {
-        local[node] = i;
-    }
-    let mut kpp = Mat::<f64>::zeros(3 * np, 3 * np);
-    let mut mpp = Mat::<f64>::zeros(3 * np, 3 * np);
-    for (i, &node) in patch.iter().enumerate() {
-        for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
-            let j = local[ops.pattern.col[b] as usize];
-            if j == usize::MAX {
-                continue;
-            }
-            for r in 0..3 {
-                for c in 0..3 {
-                    kpp[(3 * i + r, 3 * j + c)] = ops.k[b][3 * r + c];
-                    mpp[(3 * i + r, 3 * j + c)] = ops.m[b][3 * r + c];
-                }
-            }
-        }
-    }
-    let llt = kpp.llt(faer::Side::Lower).ok()?;
-    let dofs: Vec<usize> = patch
-        .iter()
-        .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
-        .collect();
-    let w = x.ncols();
-    let mut delta = Mat::<f64>::zeros(3 * np, w);
-    for j in 0..w {
-        let xkx: f64 = x
-            .col(j)
-            .iter()
-            .zip(kx.col(j).iter())
-            .map(|(a, b)| a * b)
-            .sum();
-        let xmx: f64 = x
-            .col(j)
-            .iter()
-            .zip(mx.col(j).iter())
-            .map(|(a, b)| a * b)
-            .sum();
-        let theta = xkx / xmx;
-        for (i, &d) in dofs.iter().enumerate() {
-            delta[(i, j)] = theta * mx[(d, j)] - kx[(d, j)];
-        }
-    }
-    faer::linalg::solvers::Solve::solve_in_place(&llt, delta.as_mut());
-    Some(Correction {
-        k_delta: &kpp * &delta,
-        m_delta: &mpp * &delta,
-        dofs,
-        delta,
-    })
-}
 
 /// The previous rigid-body modes when there are more than the six motions of a whole (parts
 /// touching along edges or corners); empty otherwise (the exact rigid fields serve).

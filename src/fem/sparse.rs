@@ -6,7 +6,9 @@
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
+mod mass;
 mod spmm;
+pub use mass::{is_scalar_blocks, spmm_scalar};
 pub use spmm::{spmm, Scalar};
 
 /// Sparsity of a node-blocked matrix: CSR over nodes, columns sorted.

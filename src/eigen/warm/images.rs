@@ -28,8 +28,9 @@ use std::collections::HashSet;
 /// an eigenpair of the previous shape; above it (an approximate answer) it is multiplied out.
 pub(super) const RELATION_MAX_RESIDUAL: f64 = 1e-6;
 
-/// `K X` on `next` for the instant answer's block `X` (`x`, `n x w`: `fields` rigid fields,
-/// then the carried columns of [`super::previous_columns`]), given `M X` (`mx`) and the cells
+/// `K X` on `next` for the instant answer's block `X` (`n x w`, given by rows: `x_rows[i * w +
+/// j]`; `fields` rigid fields, then the carried columns of [`super::previous_columns`]), given
+/// `M X` (`mx`) and the cells
 /// the edit changed ([`super::edited_cells`]). See the module docs; the whole product where
 /// the edit is too large to tell apart (`edited` is `None`).
 pub(super) fn stiffness_images(
@@ -37,11 +38,11 @@ pub(super) fn stiffness_images(
     next: &FemModel,
     edited: Option<&HashSet<[i64; 3]>>,
     previous_solution: &EigenSolution,
-    x: &Mat<f64>,
+    x_rows: &[f64],
     mx: &Mat<f64>,
     fields: usize,
 ) -> Mat<f64> {
-    let (n, w) = (x.nrows(), x.ncols());
+    let (n, w) = (mx.nrows(), mx.ncols());
     let extra = extra_rigid(previous_solution).ncols();
     let modes = previous_solution.vectors.ncols();
     // Per column: the eigenvalue whose relation gives its image, or `None` (multiplied out).
@@ -57,14 +58,17 @@ pub(super) fn stiffness_images(
         .filter(|_| !related.is_empty())
         .and_then(|e| touched_nodes(next, e))
     else {
-        return ops.apply_block(Which::K, x.as_ref());
+        return ops.apply_rows(Which::K, x_rows, w);
     };
     let mut kx = Mat::<f64>::zeros(n, w);
     // The columns multiplied out: guards, extra rigid modes, approximate modes.
     let exact: Vec<usize> = (fields..w).filter(|&j| lambda[j].is_none()).collect();
     if !exact.is_empty() {
-        let xe = Mat::from_fn(n, exact.len(), |i, c| x[(i, exact[c])]);
-        let ke = ops.apply_block(Which::K, xe.as_ref());
+        let ne = exact.len();
+        let xe: Vec<f64> = (0..n * ne)
+            .map(|k| x_rows[k / ne * w + exact[k % ne]])
+            .collect();
+        let ke = ops.apply_rows(Which::K, &xe, ne);
         for (c, &j) in exact.iter().enumerate() {
             kx.col_mut(j).copy_from(ke.col(c));
         }
@@ -75,33 +79,26 @@ pub(super) fn stiffness_images(
             kx[(i, j)] = l * mx[(i, j)];
         }
     }
-    // The rows near the edit, multiplied out for the related columns (read by rows: a DOF's
-    // values side by side).
-    let nr = related.len();
-    let mut by_rows = vec![0.0; n * nr];
-    for (c, &j) in related.iter().enumerate() {
-        for (i, &v) in x.col(j).iter().enumerate() {
-            by_rows[i * nr + c] = v;
-        }
-    }
-    let mut acc = vec![0.0; 3 * nr];
+    // The rows near the edit, multiplied out (every column, read by rows: a DOF's values side
+    // by side; the related columns' are kept).
+    let mut acc = vec![0.0; 3 * w];
     for node in rows {
         acc.fill(0.0);
         for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
             let (col, kb) = (3 * ops.pattern.col[b] as usize, &ops.k[b]);
-            let v = &by_rows[col * nr..(col + 3) * nr];
-            let (v0, rest) = v.split_at(nr);
-            let (v1, v2) = rest.split_at(nr);
-            for (r, a) in acc.chunks_exact_mut(nr).enumerate() {
+            let v = &x_rows[col * w..(col + 3) * w];
+            let (v0, rest) = v.split_at(w);
+            let (v1, v2) = rest.split_at(w);
+            for (r, a) in acc.chunks_exact_mut(w).enumerate() {
                 let k = &kb[3 * r..3 * r + 3];
-                for c in 0..nr {
+                for c in 0..w {
                     a[c] += k[0] * v0[c] + k[1] * v1[c] + k[2] * v2[c];
                 }
             }
         }
-        for (r, a) in acc.chunks_exact(nr).enumerate() {
-            for (&v, &j) in a.iter().zip(&related) {
-                kx[(3 * node + r, j)] = v;
+        for (r, a) in acc.chunks_exact(w).enumerate() {
+            for &j in &related {
+                kx[(3 * node + r, j)] = a[j];
             }
         }
     }
@@ -168,7 +165,8 @@ mod tests {
             .as_ref()
             .and_then(|e| touched_nodes(&next, e))
             .is_some_and(|r| !r.is_empty()));
-        let got = stiffness_images(&ops, &next, edited.as_ref(), &solution, &x, &mx, 6);
+        let x_rows: Vec<f64> = (0..n * w).map(|k| x[(k / w, k % w)]).collect();
+        let got = stiffness_images(&ops, &next, edited.as_ref(), &solution, &x_rows, &mx, 6);
         for j in 0..w {
             let (mut diff, mut norm) = (0.0f64, 0.0f64);
             for i in 0..n {
