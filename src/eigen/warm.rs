@@ -127,6 +127,15 @@ pub fn transfer(
     let w = vectors.ncols();
     let n = next.dofs();
     let mut block = vec![0.0; n * w];
+    // The previous vectors by rows (a node's three DOFs' values side by side), so that a
+    // carried row is one contiguous copy or sum.
+    let mut old_rows = vec![0.0; vectors.nrows() * w];
+    for j in 0..w {
+        for (i, &v) in vectors.col(j).iter().enumerate() {
+            old_rows[i * w + j] = v;
+        }
+    }
+    let old_row = |o: usize| &old_rows[3 * o * w..3 * (o + 1) * w];
     let [plx, ply, plz] = previous.lattice.map(|v| v as i64);
     let old_node = |q: [i64; 3]| -> Option<usize> {
         if (0..3).any(|a| q[a] < 0) || q[0] >= plx || q[1] >= ply || q[2] >= plz {
@@ -142,11 +151,7 @@ pub fn transfer(
         let row = &mut block[3 * node * w..3 * (node + 1) * w];
         if let Some(o) = old_node(q) {
             kept += 1;
-            for c in 0..3 {
-                for j in 0..w {
-                    row[c * w + j] = vectors[(3 * o + c, j)];
-                }
-            }
+            row.copy_from_slice(old_row(o));
             continue;
         }
         fresh += 1;
@@ -155,11 +160,7 @@ pub fn transfer(
             let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
             if let Some(o) = old_node([0, 1, 2].map(|a| q[a] + step[a])) {
                 count += 1.0;
-                for c in 0..3 {
-                    for j in 0..w {
-                        row[c * w + j] += vectors[(3 * o + c, j)];
-                    }
-                }
+                row.iter_mut().zip(old_row(o)).for_each(|(r, v)| *r += v);
             }
         }
         if count > 0.0 {
