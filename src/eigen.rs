@@ -291,13 +291,7 @@ impl<'a> Operators<'a> {
         if w == 0 {
             return Mat::zeros(n, 0);
         }
-        let mut rows = vec![0.0; n * w];
-        for j in 0..w {
-            for (i, v) in x.col(j).iter().enumerate() {
-                rows[i * w + j] = *v;
-            }
-        }
-        self.apply_rows(which, &rows, w)
+        self.apply_rows(which, &to_rows(x), w)
     }
 
     /// [`Operators::apply_block`] for a block given by rows (`x[i * w + j]`: DOF `i` of column
@@ -326,16 +320,9 @@ impl<'a> Operators<'a> {
         w: usize,
         product: impl Fn(&[f64], &mut [f64], sparse::RowBlock),
     ) -> Mat<f64> {
-        let n = self.dofs();
-        let mut out = vec![0.0; n * w];
+        let mut out = vec![0.0; self.dofs() * w];
         product(x, &mut out, sparse::RowBlock::dense(w));
-        let mut y = Mat::<f64>::zeros(n, w);
-        for j in 0..w {
-            for (i, v) in y.col_mut(j).iter_mut().enumerate() {
-                *v = out[i * w + j];
-            }
-        }
-        y
+        from_rows(&out, w)
     }
 
     /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]).
@@ -368,6 +355,31 @@ impl<'a> Operators<'a> {
     pub fn is_rigid(&self, lambda: f64) -> bool {
         lambda < RIGID_RELATIVE * self.scale
     }
+}
+
+/// Dense `n x w` row-major copy of a column-major matrix (`out[i * w + j] = mat[(i, j)]`): the
+/// layout the block kernels read, a DOF's values side by side.
+pub(crate) fn to_rows(mat: MatRef<'_, f64>) -> Vec<f64> {
+    let (n, w) = (mat.nrows(), mat.ncols());
+    let mut out = vec![0.0; n * w];
+    for j in 0..w {
+        for (i, &v) in mat.col(j).iter().enumerate() {
+            out[i * w + j] = v;
+        }
+    }
+    out
+}
+
+/// The column-major matrix of a row-major block of width `w` ([`to_rows`]' inverse).
+pub(crate) fn from_rows(rows: &[f64], w: usize) -> Mat<f64> {
+    let n = rows.len().checked_div(w).unwrap_or(0);
+    let mut out = Mat::<f64>::zeros(n, w);
+    for j in 0..w {
+        for (i, v) in out.col_mut(j).iter_mut().enumerate() {
+            *v = rows[i * w + j];
+        }
+    }
+    out
 }
 
 /// Solves with the chosen solver.

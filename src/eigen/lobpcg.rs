@@ -24,8 +24,8 @@
 
 use super::multigrid::Multigrid;
 use super::{
-    lanczos, random_block, select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution,
-    ModeCount, Operators, SolveTimings, Which,
+    lanczos, random_block, select, solution, sym_eigen, to_rows, EigenError, EigenOptions,
+    EigenSolution, ModeCount, Operators, SolveTimings, Which,
 };
 use crate::buffer::zeroed;
 use crate::fem::sparse::RowBlock;
@@ -530,18 +530,6 @@ impl Search {
         self.theta[locked..].copy_from_slice(&theta_new);
         Ok(())
     }
-}
-
-/// Dense `n x width` row-major copy of a column-major matrix's columns.
-fn to_rows(mat: MatRef<'_, f64>) -> Vec<f64> {
-    let (n, w) = (mat.nrows(), mat.ncols());
-    let mut out = vec![0.0; n * w];
-    for j in 0..w {
-        for i in 0..n {
-            out[i * w + j] = mat[(i, j)];
-        }
-    }
-    out
 }
 
 /// The six rigid-body fields (translations, rotations about the centroid), row-major `n x 6`.

@@ -37,8 +37,8 @@ use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
 use super::lobpcg::{self, rigid_fields};
 use super::{
-    random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
-    SolveTimings, SolverKind,
+    from_rows, random_block, select, solution, to_rows, EigenError, EigenOptions, EigenSolution,
+    ModeCount, Operators, SolveTimings, SolverKind,
 };
 use crate::fem::FemModel;
 use faer::{Mat, MatRef, Par};
@@ -129,12 +129,7 @@ pub fn transfer(
     let mut block = vec![0.0; n * w];
     // The previous vectors by rows (a node's three DOFs' values side by side), so that a
     // carried row is one contiguous copy or sum.
-    let mut old_rows = vec![0.0; vectors.nrows() * w];
-    for j in 0..w {
-        for (i, &v) in vectors.col(j).iter().enumerate() {
-            old_rows[i * w + j] = v;
-        }
-    }
+    let old_rows = to_rows(vectors);
     let old_row = |o: usize| &old_rows[3 * o * w..3 * (o + 1) * w];
     let [plx, ply, plz] = previous.lattice.map(|v| v as i64);
     let old_node = |q: [i64; 3]| -> Option<usize> {
@@ -290,12 +285,7 @@ pub fn ritz(
         row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
         row[fields..].copy_from_slice(&carried.block[i * cc..(i + 1) * cc]);
     }
-    let mut x = Mat::<f64>::zeros(n, w);
-    for j in 0..w {
-        for (i, v) in x.col_mut(j).iter_mut().enumerate() {
-            *v = x_rows[i * w + j];
-        }
-    }
+    let x = from_rows(&x_rows, w);
     let edited = edited_cells(previous, next, offset);
     let mx = ops.mass_rows_scalar(&x_rows, w);
     let kx = images::stiffness_images(
@@ -380,6 +370,24 @@ pub fn ritz(
     // An approximate answer is never a warm start itself.
     out.guard_vectors = Mat::zeros(n, 0);
     Ok(out)
+}
+
+/// `out += A s` for one node block `A` (3x3, row-major) and the by-rows values of one node
+/// `s` (three DOF rows of `w` columns side by side; `out` likewise): the inner step of the
+/// products over a few node rows (`images`, `correction`).
+fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
+    let w = s.len() / 3;
+    if w == 0 {
+        return;
+    }
+    let (s0, rest) = s.split_at(w);
+    let (s1, s2) = rest.split_at(w);
+    for (r, o) in out.chunks_exact_mut(w).enumerate() {
+        let (a0, a1, a2) = (block[3 * r], block[3 * r + 1], block[3 * r + 2]);
+        for j in 0..w {
+            o[j] += a0 * s0[j] + a1 * s1[j] + a2 * s2[j];
+        }
+    }
 }
 
 /// The symmetric Gram matrix `X^T Y` (`Y = A X` for a symmetric `A`) from its lower triangle

@@ -15,7 +15,8 @@
 //! side by side.
 
 use super::super::factor::ShiftedCholesky;
-use super::super::Operators;
+use super::super::{from_rows, to_rows, Operators};
+use super::add_block_product;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
 use faer::{Mat, Par};
@@ -133,8 +134,7 @@ impl Correction {
     /// `M_pp delta` (`3 p x w`, column-major).
     fn mass_images(&self, ops: &Operators, patch: &[usize]) -> Mat<f64> {
         let (_, rows) = self.products(ops, patch, &self.delta, false);
-        let w = self.delta.ncols();
-        Mat::from_fn(3 * patch.len(), w, |i, j| rows[i * w + j])
+        from_rows(&rows, self.delta.ncols())
     }
 
     /// `A D` for `A = K` (when `with_k`) and `A = M` on the node rows `rows`, row-major
@@ -149,13 +149,7 @@ impl Correction {
         with_k: bool,
     ) -> (Vec<f64>, Vec<f64>) {
         let w = d.ncols();
-        // D by rows: a DOF's values side by side.
-        let mut by_rows = vec![0.0; d.nrows() * w];
-        for j in 0..w {
-            for (i, &v) in d.col(j).iter().enumerate() {
-                by_rows[i * w + j] = v;
-            }
-        }
+        let by_rows = to_rows(d.as_ref());
         let mut k_out = vec![0.0; if with_k { 3 * rows.len() * w } else { 0 }];
         let mut m_out = vec![0.0; 3 * rows.len() * w];
         for (i, &r) in rows.iter().enumerate() {
@@ -165,32 +159,18 @@ impl Correction {
                     continue;
                 }
                 let src = &by_rows[3 * a as usize * w..3 * (a as usize + 1) * w];
-                let (s0, rest) = src.split_at(w);
-                let (s1, s2) = rest.split_at(w);
+                let out = 3 * i * w..3 * (i + 1) * w;
                 if with_k {
-                    let kb = &ops.k[b];
-                    let out = &mut k_out[3 * i * w..3 * (i + 1) * w];
-                    for (c, o) in out.chunks_exact_mut(w).enumerate() {
-                        let (a0, a1, a2) = (kb[3 * c], kb[3 * c + 1], kb[3 * c + 2]);
-                        for j in 0..w {
-                            o[j] += a0 * s0[j] + a1 * s1[j] + a2 * s2[j];
-                        }
-                    }
+                    add_block_product(&ops.k[b], src, &mut k_out[out.clone()]);
                 }
-                let mb = &ops.m[b];
-                let out = &mut m_out[3 * i * w..3 * (i + 1) * w];
                 if ops.m_scalar {
-                    let s = mb[0];
-                    for (o, src) in out.chunks_exact_mut(w).zip([s0, s1, s2]) {
-                        o.iter_mut().zip(src).for_each(|(o, v)| *o += s * v);
-                    }
+                    let s = ops.m[b][0];
+                    m_out[out]
+                        .iter_mut()
+                        .zip(src)
+                        .for_each(|(o, v)| *o += s * v);
                 } else {
-                    for (c, o) in out.chunks_exact_mut(w).enumerate() {
-                        let (a0, a1, a2) = (mb[3 * c], mb[3 * c + 1], mb[3 * c + 2]);
-                        for j in 0..w {
-                            o[j] += a0 * s0[j] + a1 * s1[j] + a2 * s2[j];
-                        }
-                    }
+                    add_block_product(&ops.m[b], src, &mut m_out[out]);
                 }
             }
         }

@@ -19,7 +19,7 @@
 //! three orders below what the carried answer is accurate to (1e-5 to 3e-3).
 
 use super::super::{EigenSolution, Operators, Which};
-use super::{extra_rigid, nodes_near};
+use super::{add_block_product, extra_rigid, nodes_near};
 use crate::fem::FemModel;
 use faer::Mat;
 use std::collections::HashSet;
@@ -85,16 +85,8 @@ pub(super) fn stiffness_images(
     for node in rows {
         acc.fill(0.0);
         for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
-            let (col, kb) = (3 * ops.pattern.col[b] as usize, &ops.k[b]);
-            let v = &x_rows[col * w..(col + 3) * w];
-            let (v0, rest) = v.split_at(w);
-            let (v1, v2) = rest.split_at(w);
-            for (r, a) in acc.chunks_exact_mut(w).enumerate() {
-                let k = &kb[3 * r..3 * r + 3];
-                for c in 0..w {
-                    a[c] += k[0] * v0[c] + k[1] * v1[c] + k[2] * v2[c];
-                }
-            }
+            let col = 3 * ops.pattern.col[b] as usize;
+            add_block_product(&ops.k[b], &x_rows[col * w..(col + 3) * w], &mut acc);
         }
         for (r, a) in acc.chunks_exact(w).enumerate() {
             for &j in &related {
@@ -165,7 +157,7 @@ mod tests {
             .as_ref()
             .and_then(|e| touched_nodes(&next, e))
             .is_some_and(|r| !r.is_empty()));
-        let x_rows: Vec<f64> = (0..n * w).map(|k| x[(k / w, k % w)]).collect();
+        let x_rows = crate::eigen::to_rows(x.as_ref());
         let got = stiffness_images(&ops, &next, edited.as_ref(), &solution, &x_rows, &mx, 6);
         for j in 0..w {
             let (mut diff, mut norm) = (0.0f64, 0.0f64);
