@@ -5,8 +5,9 @@
 //! 2022 eq. 6). Two answers start from the previous shape's solution:
 //! - [`ritz`], the instant one ([`crate::basis::ModeBasis::carried_ritz`], played by the
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
-//!   relaxed near the edit and re-balanced by one Rayleigh-Ritz step, no factorisation, and
-//!   their stiffness images from the eigen relation away from the edit (`warm/images.rs`);
+//!   relaxed near the edit (`warm/correction.rs`: only that small patch is factored, never
+//!   the object) and re-balanced by one Rayleigh-Ritz step, their stiffness images from the
+//!   eigen relation away from the edit (`warm/images.rs`);
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
