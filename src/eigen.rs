@@ -227,8 +227,8 @@ pub struct Operators<'a> {
     /// Infinity norm of M.
     pub m_norm: f64,
     /// Every block of `M` is a scalar times the identity ([`sparse::is_scalar_blocks`]: every
-    /// assembled model's is), so the instant answer's `M X` takes the three-times-cheaper
-    /// [`sparse::spmm_scalar`] ([`Operators::mass_rows_scalar`]).
+    /// assembled model's is), so `M X` takes the three-times-cheaper
+    /// [`sparse::spmm_scalar`].
     pub m_scalar: bool,
     /// `trace K / trace M`: the scale of the spectrum.
     pub scale: f64,
@@ -297,41 +297,19 @@ impl<'a> Operators<'a> {
     /// [`Operators::apply_block`] for a block given by rows (`x[i * w + j]`: DOF `i` of column
     /// `j`), as its callers often build it; the product comes back column-major.
     pub fn apply_rows(&self, which: Which, x: &[f64], w: usize) -> Mat<f64> {
-        self.rows_product(x, w, |x, y, l| self.spmm(which, x, y, l))
-    }
-
-    /// `M X` like [`Operators::apply_rows`], through [`sparse::spmm_scalar`] where the mass's
-    /// blocks allow ([`Operators::m_scalar`]): for the instant answer. The eigensolvers keep
-    /// the general kernel: a change of rounding in their products rotates the eigenvectors of
-    /// an exactly degenerate pair within its plane, and the strike gains of such a pair depend
-    /// on that basis (ARCHITECTURE.md, "Degenerate pairs"), so a solver's answer for a
-    /// symmetric object would change sound with the kernel.
-    pub fn mass_rows_scalar(&self, x: &[f64], w: usize) -> Mat<f64> {
-        self.rows_product(x, w, |x, y, l| match self.m_scalar {
-            true => sparse::spmm_scalar(self.pattern, self.m, x, y, l),
-            false => sparse::spmm(self.pattern, self.m, x, y, l),
-        })
-    }
-
-    /// A product of a block given by rows, returned column-major.
-    fn rows_product(
-        &self,
-        x: &[f64],
-        w: usize,
-        product: impl Fn(&[f64], &mut [f64], sparse::RowBlock),
-    ) -> Mat<f64> {
         let mut out = vec![0.0; self.dofs() * w];
-        product(x, &mut out, sparse::RowBlock::dense(w));
+        self.spmm(which, x, &mut out, sparse::RowBlock::dense(w));
         from_rows(&out, w)
     }
 
-    /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]).
+    /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]; the mass through
+    /// [`sparse::spmm_scalar`] where its blocks allow, [`Operators::m_scalar`]).
     pub fn spmm(&self, which: Which, x: &[f64], y: &mut [f64], layout: sparse::RowBlock) {
-        let a = match which {
-            Which::K => self.k,
-            Which::M => self.m,
-        };
-        sparse::spmm(self.pattern, a, x, y, layout)
+        match which {
+            Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
+            Which::M if self.m_scalar => sparse::spmm_scalar(self.pattern, self.m, x, y, layout),
+            Which::M => sparse::spmm(self.pattern, self.m, x, y, layout),
+        }
     }
 
     /// Residuals (Jin et al. 2022, eq. 6) of the pairs `(lambdas[j], x[:, j])`, by block products.

@@ -164,7 +164,7 @@ fn scaling_laws_equal_a_direct_physical_solve() {
     for (a, b) in scaled.iter().zip(&direct.eigenvalues) {
         assert!((a - b).abs() < 1e-9 * b, "{a} vs {b}");
     }
-    // Gains: the rescaled modes at a hit equal the direct modes (up to sign), to 1e-9.
+    // Gains: the rescaled modes at a hit equal the direct modes (up to sign).
     let hit = Hit {
         point_m: [0.0, 2.5 * h, 2.0 * h],
         direction: Some([1.0, 0.2, 0.0]),
@@ -184,11 +184,14 @@ fn scaling_laws_equal_a_direct_physical_solve() {
             },
         )
         .unwrap();
+    // The two solves' eigenvectors differ by about residual / relative gap (Davis-Kahan):
+    // residuals up to 2e-11 of ||K||, gaps down to 1.4 %, so up to ~1e-9 of a mode's own
+    // scale. That error is absolute on the field, so the tolerance is 1e-9 of the largest
+    // value, not of each value (mode 9's hit sits near a nodal line: 0.026 of the largest,
+    // and the two agree to 3e-11).
+    let scale = forces.iter().fold(0.0f64, |m, f| m.max(f.abs()));
     for (a, b) in forces.iter().zip(&direct_forces) {
-        assert!(
-            (a.abs() - b.abs()).abs() < 1e-9 * a.abs().max(1e-12),
-            "{a} vs {b}"
-        );
+        assert!((a.abs() - b.abs()).abs() < 1e-9 * scale, "{a} vs {b}");
     }
 }
 

@@ -288,7 +288,7 @@ pub fn ritz(
     }
     let x = from_rows(&x_rows, w);
     let edited = edited_cells(previous, next, offset);
-    let mx = ops.mass_rows_scalar(&x_rows, w);
+    let mx = ops.apply_rows(super::Which::M, &x_rows, w);
     let kx = images::stiffness_images(
         &ops,
         next,

@@ -3,11 +3,10 @@
 //! element: `int N_a N_b dV` couples each displacement component only with itself), so a block
 //! needs three multiply-adds per vector instead of nine.
 //!
-//! Where it sits: beside [`super::spmm`], for the instant answer's `M X`
-//! ([`crate::eigen::Operators::mass_rows_scalar`], when [`is_scalar_blocks`] holds for its `M`:
-//! every model this crate assembles, every element kind, partial voxels included; the
-//! eigensolvers keep the general kernel, see ARCHITECTURE.md, "Degenerate pairs"). Each node
-//! row accumulates, per column chunk,
+//! Where it sits: beside [`super::spmm`], for the eigensolvers' and the instant answer's `M X`
+//! ([`crate::eigen::Operators::spmm`], when [`is_scalar_blocks`] holds for its `M`: every model
+//! this crate assembles, every element kind, partial voxels included). Each node row
+//! accumulates, per column chunk,
 //! `m_ab` times the three contiguous-by-column rows of node `b`: the compiler vectorises the
 //! fixed-width inner loops (compiled once more for AVX2/FMA and picked at run time).
 
