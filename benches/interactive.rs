@@ -14,6 +14,12 @@
 //!
 //! `-- --quick` runs the default object only; `-- --scipy DIR` exports the matrices and this
 //! solver's answers for the SciPy comparison (`scripts/scipy-compare.sh`).
+//!
+//! `-- --drag [INTERVAL_MS]` measures the engine as the plugin runs it: a drag of one-voxel
+//! strokes on the default object, one every INTERVAL_MS (default 60), through the plugin's
+//! solver chain on the worker thread; for each stroke, the time from its request until an
+//! answer to it (or to a later stroke) plays, with the worker interrupting an exact solve that
+//! a newer stroke has made obsolete and, for comparison, with every solve run to its end.
 
 use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
@@ -244,6 +250,11 @@ fn export_for_scipy(dir: &std::path::Path) {
 fn main() {
     faer::set_global_parallelism(faer::Par::Seq);
     let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--drag") {
+        let interval_ms = args.get(i + 1).and_then(|v| v.parse().ok()).unwrap_or(60);
+        drag::run(interval_ms);
+        return;
+    }
     if let Some(i) = args.iter().position(|a| a == "--scipy") {
         export_for_scipy(std::path::Path::new(args.get(i + 1).expect("--scipy DIR")));
         return;
@@ -322,6 +333,7 @@ fn main() {
                 SolverKind::Auto,
                 &options,
                 Some(&mut cache),
+                modalforge::eigen::Stop::NEVER,
             )
             .expect("exact");
             let exact_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -405,4 +417,128 @@ fn main() {
          ElementCache) and its assembly; warm: the exact warm-started solve (* = fell back to \
          cold); err: largest relative frequency difference from a cold solve of the edited shape"
     );
+}
+
+/// `--drag`: edit-to-sound latency of a sculpting drag through the engine's worker.
+mod drag {
+    use super::{grid_of, stroke, MODES};
+    use modalforge::basis::BasisError;
+    use modalforge::eigen::{EigenOptions, ModeCount, SolverKind, Stop};
+    use modalforge::engine::{
+        interactive_solvers, AnswerSwitch, Engine, EngineConfig, KeptAnswers, ModeSolver,
+        ObjectModes, ObjectRequest, Voicing,
+    };
+    use modalforge::fem::ElementKind;
+    use modalforge::material::Material;
+    use std::time::{Duration, Instant};
+
+    /// Strokes in one drag.
+    const STROKES: usize = 12;
+
+    /// A chain solver that ignores the worker's stop, as every solver did before the worker
+    /// could interrupt them: the comparison.
+    struct Uninterrupted(Box<dyn ModeSolver>);
+
+    impl ModeSolver for Uninterrupted {
+        fn name(&self) -> &'static str {
+            self.0.name()
+        }
+        fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+            self.0.solve(r)
+        }
+        fn solve_until(&mut self, r: &ObjectRequest, _: Stop) -> Result<ObjectModes, BasisError> {
+            self.0.solve(r)
+        }
+        fn applies(&self, r: &ObjectRequest) -> bool {
+            self.0.applies(r)
+        }
+        fn expected_error(&self) -> Option<f64> {
+            self.0.expected_error()
+        }
+    }
+
+    pub fn run(interval_ms: u64) {
+        let glass = Material::preset("glass").expect("glass");
+        println!(
+            "\ndrag on the default object: {STROKES} one-voxel strokes every {interval_ms} ms, \
+             {MODES} modes, hex27x2; ms from a stroke to an answer to it (or a later one) playing"
+        );
+        println!(
+            "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9}",
+            "worker", "median", "p90", "max", "total", "interrupted", "answers"
+        );
+        for interrupting in [true, false] {
+            let solvers = interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new())
+                .into_iter()
+                .map(|s| match interrupting {
+                    true => s,
+                    false => Box::new(Uninterrupted(s)) as Box<dyn ModeSolver>,
+                })
+                .collect();
+            let voicing = Voicing::from_material(&glass, glass.poisson_ratio).expect("voicing");
+            let (_audio, control) =
+                Engine::start(48_000.0, EngineConfig::default(), voicing, solvers).expect("engine");
+            let request = |grid| ObjectRequest {
+                grid,
+                element: ElementKind::Hex27Blocks,
+                poisson_ratio: glass.poisson_ratio,
+                solver: SolverKind::Auto,
+                options: EigenOptions {
+                    count: ModeCount::First(MODES),
+                    ..Default::default()
+                },
+                recording: None,
+            };
+            let mut grid = grid_of("bowl:d=16,wall=2");
+            control.request(request(grid.clone()));
+            assert!(
+                control.wait_idle(Duration::from_secs(60)),
+                "the first solve"
+            );
+            let first = control.status().playing.expect("an answer").request;
+            let start = Instant::now();
+            let mut sent = Vec::new();
+            let mut heard = vec![None; STROKES];
+            let solves_before = control.status().solves;
+            while heard.iter().any(Option::is_none) {
+                let due = start + Duration::from_millis(interval_ms * sent.len() as u64);
+                if sent.len() < STROKES && Instant::now() >= due {
+                    grid = stroke(&grid, true);
+                    control.request(request(grid.clone()));
+                    sent.push(Instant::now());
+                }
+                if let Some(playing) = control.status().playing {
+                    let answered = (playing.request - first) as usize;
+                    for (k, h) in heard.iter_mut().enumerate().take(answered.min(sent.len())) {
+                        if h.is_none() {
+                            *h = Some(sent[k].elapsed().as_secs_f64() * 1e3);
+                        }
+                    }
+                }
+                assert!(
+                    start.elapsed() < Duration::from_secs(120),
+                    "the drag never settled"
+                );
+                std::thread::sleep(Duration::from_micros(500));
+            }
+            let total = start.elapsed().as_secs_f64() * 1e3;
+            let mut ms: Vec<f64> = heard.into_iter().flatten().collect();
+            ms.sort_by(f64::total_cmp);
+            let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
+            println!(
+                "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9}",
+                if interrupting {
+                    "interrupting"
+                } else {
+                    "run to end"
+                },
+                at(0.5),
+                at(0.9),
+                at(1.0),
+                total,
+                control.status().interrupted,
+                control.status().solves - solves_before
+            );
+        }
+    }
 }

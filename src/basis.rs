@@ -151,6 +151,14 @@ pub fn strike_align_unisons(eigenvalues: &[f64], forces: &mut [f64]) {
     }
 }
 
+impl BasisError {
+    /// Whether this is a solve given up at its caller's request
+    /// ([`ModeBasis::solve_cached`]), not a failure.
+    pub fn is_interrupted(&self) -> bool {
+        matches!(self, BasisError::Eigen(EigenError::Interrupted))
+    }
+}
+
 /// A strike: where and in which direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -199,11 +207,14 @@ impl ModeBasis {
         solver: SolverKind,
         options: &EigenOptions,
     ) -> Result<Self, BasisError> {
-        Self::solve_cached(grid, element, poisson_ratio, solver, options, None)
+        let never = eigen::Stop::NEVER;
+        Self::solve_cached(grid, element, poisson_ratio, solver, options, None, never)
     }
 
     /// [`ModeBasis::solve`], assembling with the cut elements kept in `cache`
-    /// ([`FemModel::assemble_cached`]): the interactive chain's exact answer to an edit.
+    /// ([`FemModel::assemble_cached`]) and given up with [`EigenError::Interrupted`] once
+    /// `stop` says so (polled after the assembly and between the solver's steps): the
+    /// interactive chain's exact answer to an edit, which a newer edit can make obsolete.
     pub fn solve_cached(
         grid: &VoxelGrid,
         element: ElementKind,
@@ -211,11 +222,13 @@ impl ModeBasis {
         solver: SolverKind,
         options: &EigenOptions,
         cache: Option<&mut ElementCache>,
+        stop: eigen::Stop,
     ) -> Result<Self, BasisError> {
         let t = std::time::Instant::now();
         let model = FemModel::assemble_cached(grid, element, poisson_ratio, cache)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
-        let solution = eigen::solve(&model, solver, options)?;
+        stop.check()?;
+        let solution = eigen::solve_until(&model, solver, options, stop)?;
         Ok(Self::from_parts(grid, model, solution, assemble_ms))
     }
 

@@ -20,7 +20,9 @@
 mod check;
 
 use super::factor::ShiftedCholesky;
-use super::{random_block, EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Which};
+use super::{
+    random_block, EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop, Which,
+};
 use crate::fem::FemModel;
 use check::{Check, NextBlock, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
@@ -321,11 +323,21 @@ fn basis_cap(nev: usize, b: usize, n: usize) -> usize {
 
 /// Runs the solver (see the module docs).
 pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, EigenError> {
+    solve_until(model, options, Stop::NEVER)
+}
+
+/// [`solve`], polling `stop` after the factorisation and once per block.
+pub fn solve_until(
+    model: &FemModel,
+    options: &EigenOptions,
+    stop: Stop,
+) -> Result<EigenSolution, EigenError> {
     let ops = Operators::new(model);
     let t0 = Instant::now();
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(model, shift, Par::Seq)?;
-    let mut solution = run(&ops, &mut llt, shift, options)?;
+    stop.check()?;
+    let mut solution = run_until(&ops, &mut llt, shift, options, stop)?;
     solution.timings.setup_ms = t0.elapsed().as_secs_f64() * 1e3 - solution.timings.iterate_ms;
     Ok(solution)
 }
@@ -369,6 +381,17 @@ pub fn run(
     shift: f64,
     options: &EigenOptions,
 ) -> Result<EigenSolution, EigenError> {
+    run_until(ops, llt, shift, options, Stop::NEVER)
+}
+
+/// [`run`], polling `stop` once per block.
+pub fn run_until(
+    ops: &Operators,
+    llt: &mut ShiftedCholesky,
+    shift: f64,
+    options: &EigenOptions,
+    stop: Stop,
+) -> Result<EigenSolution, EigenError> {
     let n = ops.dofs();
     let b = options.block_size.min(n);
     let nev = match options.count {
@@ -386,6 +409,7 @@ pub fn run(
         started: Instant::now(),
         restarts: 0,
         band: Some(b),
+        stop,
     };
     let mut krylov = Krylov::start(ops, basis_cap(nev, b, n), b, nev)?;
     let (mut converged_count, mut worst) = (0, f64::INFINITY);
@@ -531,6 +555,7 @@ impl Krylov {
     ) -> Result<Expanded, EigenError> {
         let b = self.block;
         loop {
+            checker.stop.check()?;
             let cols = self.fresh.clone();
             let mut w = self.basis.mv.get(.., cols.clone()).to_owned();
             llt.solve_in_place(w.as_mut());

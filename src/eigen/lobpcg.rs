@@ -25,7 +25,7 @@
 use super::multigrid::Multigrid;
 use super::{
     lanczos, random_block, select, solution, sym_eigen, to_rows, EigenError, EigenOptions,
-    EigenSolution, ModeCount, Operators, SolveTimings, Which,
+    EigenSolution, ModeCount, Operators, SolveTimings, Stop, Which,
 };
 use crate::buffer::zeroed;
 use crate::fem::sparse::RowBlock;
@@ -322,7 +322,7 @@ fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// Iterates from the block `start` (dense, `n x m`) until its first `need` columns converge.
+/// Iterates from the block `start` (dense, `n x m`, by rows) until its first `need` columns converge.
 ///
 /// Locking: once the lowest columns have converged, that prefix leaves the search (hard
 /// locking): it is no longer part of Rayleigh-Ritz or the block updates, and new directions are
@@ -335,14 +335,16 @@ pub(crate) fn iterate(
     ops: &Operators,
     precond: &mut dyn Preconditioner,
     start: &[f64],
-    m: usize,
     need: usize,
     options: &EigenOptions,
     iterations: &mut usize,
+    stop: Stop,
 ) -> Result<Converged, EigenError> {
+    let m = start.len() / ops.dofs();
     let mut search = Search::start(ops, start, m)?;
     let (mut best, mut best_at) = (f64::INFINITY, *iterations);
     loop {
+        stop.check()?;
         let res = search.residuals(ops)?;
         if res[..need].iter().all(|&r| r <= options.tolerance) {
             return Ok(search.converged());
@@ -643,6 +645,15 @@ fn nested_start(
 
 /// Runs the solver (see the module docs).
 pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, EigenError> {
+    solve_until(model, options, Stop::NEVER)
+}
+
+/// [`solve`], polling `stop` after the multigrid set-up and once per iteration.
+pub fn solve_until(
+    model: &FemModel,
+    options: &EigenOptions,
+    stop: Stop,
+) -> Result<EigenSolution, EigenError> {
     let options = &EigenOptions {
         tolerance: options.tolerance.min(MAX_TOLERANCE),
         ..*options
@@ -659,14 +670,15 @@ pub fn solve(model: &FemModel, options: &EigenOptions) -> Result<EigenSolution, 
     let start = nested_start(model, &mut mg, options)?;
     // A block of 3m vectors must fit well inside the space; tiny models go to the direct solver.
     if 4 * start.m > n {
-        return lanczos::solve(model, options);
+        return lanczos::solve_until(model, options, stop);
     }
+    stop.check()?;
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
     let (mut need, mut m, mut block) = (start.need, start.m, start.block);
     let mut iterations = 0;
     loop {
-        let done = iterate(&ops, &mut mg, &block, m, need, options, &mut iterations)?;
+        let done = iterate(&ops, &mut mg, &block, need, options, &mut iterations, stop)?;
         let pairs = done.converged_pairs(options.tolerance);
         let sel = select(&ops, &pairs, options.count);
         if sel.complete {

@@ -213,10 +213,10 @@ pub fn solve(
         &ops,
         &mut llt,
         &start,
-        m,
         need,
         &warm_options,
         &mut iterations,
+        super::Stop::NEVER,
     ) {
         let pairs = done.converged_pairs(options.tolerance);
         let sel = select(&ops, &pairs, options.count);

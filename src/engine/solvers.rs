@@ -22,7 +22,7 @@ use super::answers::KeptAnswers;
 use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
-use crate::eigen::ModeCount;
+use crate::eigen::{ModeCount, Stop};
 use crate::fem::ElementCache;
 use crate::predictor::Predictor;
 use crate::shape::{ops, VoxelGrid};
@@ -186,6 +186,10 @@ impl ModeSolver for IncrementalFemSolver {
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, Stop::NEVER)
+    }
+
+    fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
         // A warm-started exact solve (`ModeBasis::solve_warm`) converges in 2-8 LOBPCG
         // iterations, but they cost about as much as the whole Lanczos solve on the same
         // factor: measured slower on most objects of `cargo bench --bench interactive`. The
@@ -201,6 +205,7 @@ impl ModeSolver for IncrementalFemSolver {
                     r.solver,
                     &r.options,
                     Some(&mut elements(&self.elements)),
+                    stop,
                 )?);
                 self.kept.keep(r, &basis);
                 basis
@@ -249,6 +254,10 @@ impl ModeSolver for CoarseFemSolver {
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, Stop::NEVER)
+    }
+
+    fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
         let grid = coarse_grid(&r.grid).ok_or(BasisError::NoCoarseGrid)?;
         ModeBasis::solve_cached(
             &grid,
@@ -257,6 +266,7 @@ impl ModeSolver for CoarseFemSolver {
             r.solver,
             &r.options,
             Some(&mut elements(&self.elements)),
+            stop,
         )
         .map(|b| ObjectModes::Fem(Arc::new(b)))
     }

@@ -351,6 +351,112 @@ fn edits_during_a_solve_coalesce_to_the_newest() {
     assert_eq!(audio.object_extent(), Some(14));
 }
 
+/// A first answer that applies to every request or to none.
+struct Quick {
+    applies: bool,
+}
+
+impl ModeSolver for Quick {
+    fn name(&self) -> &'static str {
+        "quick"
+    }
+    fn applies(&self, _r: &ObjectRequest) -> bool {
+        self.applies
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        FemSolver.solve(r)
+    }
+}
+
+/// A slow exact answer (300 ms) that polls its stop every 2 ms, counting how it ended.
+struct Patient {
+    finished: Arc<AtomicU64>,
+    interrupted: Arc<AtomicU64>,
+}
+
+impl ModeSolver for Patient {
+    fn name(&self) -> &'static str {
+        "patient"
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, crate::eigen::Stop::NEVER)
+    }
+    fn solve_until(
+        &mut self,
+        r: &ObjectRequest,
+        stop: crate::eigen::Stop,
+    ) -> Result<ObjectModes, BasisError> {
+        let start = std::time::Instant::now();
+        while start.elapsed() < Duration::from_millis(300) {
+            if let Err(e) = stop.check() {
+                self.interrupted.fetch_add(1, Ordering::SeqCst);
+                return Err(e.into());
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        self.finished.fetch_add(1, Ordering::SeqCst);
+        FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn a_slow_answer_made_obsolete_gives_way_to_a_faster_one() {
+    // An edit arrives while the slow exact answer to the one before is being solved. Where a
+    // faster solver earlier in the chain answers the new edit, the obsolete solve is given up
+    // (the new edit is heard at once, not after it); where none does, it is finished (it is
+    // the next thing to play). Either way the newest edit ends up playing, answered last.
+    for first_applies in [true, false] {
+        let (finished, interrupted) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+        let (mut audio, control) = Engine::start(
+            FS,
+            EngineConfig::default(),
+            steel(),
+            vec![
+                Box::new(Quick {
+                    applies: first_applies,
+                }),
+                Box::new(Patient {
+                    finished: finished.clone(),
+                    interrupted: interrupted.clone(),
+                }),
+            ],
+        )
+        .unwrap();
+        control.request(request(bar(10), 10));
+        let t = std::time::Instant::now();
+        while !matches!(
+            control.status().state,
+            SolveState::Solving {
+                solver: "patient",
+                ..
+            }
+        ) {
+            assert!(
+                t.elapsed() < Duration::from_secs(60),
+                "the first solve never started"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        std::thread::sleep(Duration::from_millis(30));
+        control.request(request(bar(14), 10));
+        assert!(control.wait_idle(Duration::from_secs(60)));
+        let status = control.status();
+        let (done, given_up) = (
+            finished.load(Ordering::SeqCst),
+            interrupted.load(Ordering::SeqCst),
+        );
+        if first_applies {
+            assert_eq!((done, given_up, status.interrupted), (1, 1, 1));
+        } else {
+            assert_eq!((done, given_up, status.interrupted), (2, 0, 0));
+        }
+        let last = status.last.unwrap();
+        assert_eq!((last.solver, last.request), ("patient", 2));
+        audio.process(&mut [0.0; 64], &[]);
+        assert_eq!(audio.object_extent(), Some(14));
+    }
+}
+
 #[test]
 fn normalised_strikes_peak_near_the_target_level() {
     // A velocity-1 impulse at the voicing's hit peaks at most NORMALISED_PEAK (the sum of

@@ -7,7 +7,11 @@
 //! Requests that arrive during a solve coalesce: only the newest waiting one is solved next.
 //! Solvers form a chain ([`ModeSolver`]): fast approximate ones (a coarse grid, the carried
 //! modes of the last exact answer, the neural predictor: [`super::solvers`]) answer
-//! first and the exact FEM solve replaces them, unless a newer request has arrived.
+//! first and the exact FEM solve replaces them, unless a newer request has arrived. A slow
+//! solve that a newer request makes obsolete is interrupted when a faster solver earlier in the
+//! chain would answer the newer one ([`ModeSolver::solve_until`]): a stroke made while the
+//! last stroke's exact answer is being solved is heard within its own carried answer's time,
+//! not after the obsolete solve.
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
@@ -15,7 +19,7 @@ use super::object::{ObjectModes, SolvedObject};
 use super::recorded::RecordedObject;
 use super::EngineStats;
 use crate::basis::{BasisError, ModeBasis};
-use crate::eigen::{EigenOptions, SolverKind};
+use crate::eigen::{EigenOptions, SolverKind, Stop};
 use crate::fem::ElementKind;
 
 use crate::shape::VoxelGrid;
@@ -52,6 +56,18 @@ pub trait ModeSolver: Send {
     fn name(&self) -> &'static str;
     /// Solves the request.
     fn solve(&mut self, request: &ObjectRequest) -> Result<ObjectModes, BasisError>;
+    /// [`ModeSolver::solve`], given up where the solver can once `stop` says so (an error for
+    /// which [`BasisError::is_interrupted`] holds). The worker calls this; its poll answers
+    /// true once a newer request waits that a solver earlier in the chain answers, or the
+    /// engine shuts down. Default: [`ModeSolver::solve`], never interrupted (fast solvers).
+    fn solve_until(
+        &mut self,
+        request: &ObjectRequest,
+        stop: Stop,
+    ) -> Result<ObjectModes, BasisError> {
+        let _ = stop;
+        self.solve(request)
+    }
     /// Whether this solver answers `request` at all (a progressive first answer is skipped
     /// where the exact one is fast anyway). Default: always.
     fn applies(&self, _request: &ObjectRequest) -> bool {
@@ -73,8 +89,21 @@ impl ModeSolver for FemSolver {
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
-        ModeBasis::solve(&r.grid, r.element, r.poisson_ratio, r.solver, &r.options)
-            .map(|b| ObjectModes::Fem(Arc::new(b)))
+        self.solve_until(r, Stop::NEVER)
+    }
+
+    fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
+        let (grid, options) = (&r.grid, &r.options);
+        ModeBasis::solve_cached(
+            grid,
+            r.element,
+            r.poisson_ratio,
+            r.solver,
+            options,
+            None,
+            stop,
+        )
+        .map(|b| ObjectModes::Fem(Arc::new(b)))
     }
 }
 
@@ -110,6 +139,10 @@ pub struct SolveReport {
     /// Whether the answer started from the previous edit's modes (a carried or warm-started
     /// answer) rather than from scratch.
     pub warm_start: bool,
+    /// Which request it answers: requests are numbered from 1 as the worker receives them
+    /// ([`EngineControl::request`], or its request source), so a caller can tell an answer
+    /// to its latest edit from one to an earlier edit.
+    pub request: u64,
 }
 
 /// The worker's state for the editor's status line.
@@ -119,14 +152,19 @@ pub struct WorkerStatus {
     pub state: SolveState,
     /// The last finished solve.
     pub last: Option<SolveReport>,
-    /// Requests solved (each solver run counts once).
+    /// Requests solved (each solver run counts once; an interrupted run does not).
     pub solves: u64,
+    /// Solver runs given up because a newer request made them obsolete
+    /// ([`ModeSolver::solve_until`]).
+    pub interrupted: u64,
     /// The last successful answer: the one playing (or about to), with its expected error.
     pub playing: Option<SolveReport>,
 }
 
 struct Mailbox {
     request: Option<ObjectRequest>,
+    /// Requests received so far: the number of the newest ([`SolveReport::request`]).
+    serial: u64,
     shutdown: bool,
     /// The worker holds a request it took from here and has not finished solving: set under
     /// this lock as the request is taken, so that [`EngineControl::wait_idle`] never sees an
@@ -199,6 +237,7 @@ impl EngineControl {
         let shared = Arc::new(Shared {
             mailbox: Mutex::new(Mailbox {
                 request: None,
+                serial: 0,
                 shutdown: false,
                 busy: false,
             }),
@@ -207,6 +246,7 @@ impl EngineControl {
                 state: SolveState::Idle,
                 last: None,
                 solves: 0,
+                interrupted: 0,
                 playing: None,
             }),
             source: Mutex::new(None),
@@ -233,7 +273,10 @@ impl EngineControl {
 
     /// Queues a shape to solve; a request still waiting is replaced (coalescing).
     pub fn request(&self, request: ObjectRequest) {
-        lock(&self.shared.mailbox).request = Some(request);
+        let mut mb = lock(&self.shared.mailbox);
+        mb.request = Some(request);
+        mb.serial += 1;
+        drop(mb);
         self.shared.wake.notify_one();
     }
 
@@ -306,7 +349,7 @@ impl Drop for EngineControl {
         lock(&self.shared.mailbox).shutdown = true;
         self.shared.wake.notify_one();
         if let Some(t) = self.thread.take() {
-            // A solve in progress finishes first (solvers are not interruptible).
+            // A solve in progress is interrupted where its solver allows, or finishes first.
             let _ = t.join();
         }
     }
@@ -343,19 +386,19 @@ impl Worker {
                 if mb.shutdown {
                     return;
                 }
-                let request = mb.request.take();
+                let request = mb.request.take().map(|r| (r, mb.serial));
                 mb.busy |= request.is_some();
                 request
             };
             let request = request.or_else(|| {
-                let polled = lock(&self.shared.source).as_mut().and_then(|f| f());
-                if polled.is_some() {
-                    lock(&self.shared.mailbox).busy = true;
-                }
-                polled
+                let polled = lock(&self.shared.source).as_mut().and_then(|f| f())?;
+                let mut mb = lock(&self.shared.mailbox);
+                mb.busy = true;
+                mb.serial += 1;
+                Some((polled, mb.serial))
             });
-            if let Some(request) = request {
-                self.solve(&request);
+            if let Some((request, serial)) = request {
+                self.solve(&request, serial);
             }
         }
     }
@@ -372,10 +415,10 @@ impl Worker {
         }
     }
 
-    fn solve(&mut self, request: &ObjectRequest) {
+    fn solve(&mut self, request: &ObjectRequest, serial: u64) {
         if let Some(recording) = &request.recording {
             let modes = ObjectModes::Recorded(RecordedObject::clone(recording));
-            self.deliver(Ok(modes), "recording", Instant::now(), None);
+            self.deliver(Ok(modes), "recording", Instant::now(), None, serial);
             self.shared.set_state(SolveState::Idle);
             return;
         }
@@ -393,11 +436,49 @@ impl Worker {
                 solver: name,
                 since,
             });
-            let result = self.solvers[i].solve(request);
+            let result = self.solve_until_superseded(i, request, serial);
+            if result.as_ref().is_err_and(BasisError::is_interrupted) {
+                lock(&self.shared.status).interrupted += 1;
+                self.shared.status_changed();
+                break;
+            }
             let expected_error = self.solvers[i].expected_error();
-            self.deliver(result, name, since, expected_error);
+            self.deliver(result, name, since, expected_error, serial);
         }
         self.shared.set_state(SolveState::Idle);
+    }
+
+    /// Runs solver `i` on `request` (number `serial`), interrupted once the engine shuts down
+    /// or a newer request waits that a solver before `i` in the chain answers (it will be
+    /// heard sooner that way than after this solve; where none does, this answer is the next
+    /// thing to play and is finished). The poll clones a newer request once and remembers
+    /// its verdict, so a solver may poll it every few milliseconds.
+    fn solve_until_superseded(
+        &mut self,
+        i: usize,
+        request: &ObjectRequest,
+        serial: u64,
+    ) -> Result<ObjectModes, BasisError> {
+        let (earlier, rest) = self.solvers.split_at_mut(i);
+        let shared = &self.shared;
+        let verdict = std::cell::Cell::new((serial, false));
+        let poll = || {
+            let (newer, request) = {
+                let mb = lock(&shared.mailbox);
+                if mb.shutdown {
+                    return true;
+                }
+                match &mb.request {
+                    None => return false,
+                    Some(_) if mb.serial == verdict.get().0 => return verdict.get().1,
+                    Some(r) => (mb.serial, r.clone()),
+                }
+            };
+            let answered_sooner = earlier.iter().any(|s| s.applies(&request));
+            verdict.set((newer, answered_sooner));
+            answered_sooner
+        };
+        rest[0].solve_until(request, Stop::when(&poll))
     }
 
     /// Hands a solver's answer (begun at `since`) to the audio side and reports it.
@@ -407,6 +488,7 @@ impl Worker {
         name: &'static str,
         since: Instant,
         expected_error: Option<f64>,
+        request: u64,
     ) {
         let ms = since.elapsed().as_secs_f64() * 1e3;
         let report = match result {
@@ -435,6 +517,7 @@ impl Worker {
                     error: None,
                     expected_error,
                     warm_start,
+                    request,
                 }
             }
             Err(e) => SolveReport {
@@ -445,6 +528,7 @@ impl Worker {
                 error: Some(e.to_string()),
                 expected_error,
                 warm_start: false,
+                request,
             },
         };
         let mut st = lock(&self.shared.status);

@@ -74,6 +74,8 @@ pub struct SoakReport {
     pub edits: u64,
     /// Solver runs finished.
     pub solves: u64,
+    /// Solver runs given up because a newer edit made them obsolete.
+    pub interrupted: u64,
     /// Solver errors (each one a failed edit).
     pub solve_errors: Vec<String>,
     /// Whether the last edit's object is the one playing at the end.
@@ -94,13 +96,15 @@ impl std::fmt::Display for SoakReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(
             f,
-            "blocks {} ({:.0} s of audio), strikes {}, expression changes {}, edits {}, solver runs {}",
+            "blocks {} ({:.0} s of audio), strikes {}, expression changes {}, edits {}, solver runs {} \
+             finished and {} interrupted by a newer edit",
             self.blocks,
             self.blocks as f64 * BLOCK as f64 / RATE_HZ,
             self.strikes,
             self.expressions,
             self.edits,
-            self.solves
+            self.solves,
+            self.interrupted
         )?;
         writeln!(
             f,
@@ -474,6 +478,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
     settle(&mut audio, &control, &mut out);
     let status = control.status();
     report.solves = status.solves;
+    report.interrupted = status.interrupted;
     if status.solves != solves_seen {
         if let Some(e) = status.last.as_ref().and_then(|l| l.error.clone()) {
             report.solve_errors.push(e);

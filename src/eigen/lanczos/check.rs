@@ -24,7 +24,7 @@
 
 use super::super::{
     select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, Operators, SolveTimings,
-    SolverKind, Which,
+    SolverKind, Stop, Which,
 };
 use super::{tall_times_small, Basis};
 use crate::eigen::band::{band_eigen, BandEigen};
@@ -165,6 +165,8 @@ pub(super) struct RitzCheck<'a> {
     /// The block size while the projected matrix is block tridiagonal (no restart yet): the
     /// estimates then take the band path of [`RitzPairs::new`].
     pub band: Option<usize>,
+    /// The caller's interruption poll, checked once per block.
+    pub stop: Stop<'a>,
 }
 
 impl RitzCheck<'_> {
