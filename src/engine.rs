@@ -203,6 +203,14 @@ pub struct Engine;
 
 impl Engine {
     /// Prepares the audio side and spawns the worker. Allocates (all of it, here).
+    ///
+    /// Sets faer's global parallelism to sequential: the solvers are written for the one
+    /// worker thread, and faer's dense helpers that take no explicit [`faer::Par`] (the dense
+    /// eigendecompositions of Rayleigh-Ritz, products written as operators) would otherwise
+    /// run on rayon's pool, a thread per core competing with the host's audio threads, each
+    /// reserving a matrix-product workspace sized by the CPU's cache (64 MB each here, 10.7 GB
+    /// in all on a 16-core server, measured by the soak's heap count). The setting is this
+    /// library's own (the plugin links its own faer).
     pub fn start(
         sample_rate_hz: f64,
         config: EngineConfig,
@@ -219,6 +227,7 @@ impl Engine {
                 "{config:?} at {sample_rate_hz} Hz"
             )));
         }
+        faer::set_global_parallelism(faer::Par::Seq);
         let stats = Arc::new(EngineStats::default());
         // Two slots each way: one object in flight while the audio side holds another.
         let (to_audio, incoming) = rtrb::RingBuffer::new(2);

@@ -328,6 +328,22 @@ impl ModeSolver for Slow {
 }
 
 #[test]
+fn the_engine_solves_on_its_worker_thread_alone() {
+    // faer's default global parallelism is a rayon pool over every core, which its dense
+    // helpers without an explicit `Par` use: an engine makes it sequential, so a solve keeps
+    // to the worker thread (and no pool thread reserves a gemm workspace).
+    faer::set_global_parallelism(faer::Par::rayon(0));
+    let (_audio, _control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    assert!(matches!(faer::get_global_parallelism(), faer::Par::Seq));
+}
+
+#[test]
 fn edits_during_a_solve_coalesce_to_the_newest() {
     // Five edits while the first is being solved: the worker solves the first and the last
     // only, and the audio side ends up with the last shape.
