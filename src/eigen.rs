@@ -336,9 +336,15 @@ impl<'a> Operators<'a> {
     /// [`Operators::apply_block`] for a block given by rows (`x[i * w + j]`: DOF `i` of column
     /// `j`), as its callers often build it; the product comes back column-major.
     pub fn apply_rows(&self, which: Which, x: &[f64], w: usize) -> Mat<f64> {
+        from_rows(&self.rows_product(which, x, w), w)
+    }
+
+    /// `K X` or `M X` for a block given by rows, by rows (a [`MatRef::from_row_major_slice`]
+    /// view of it reads as the matrix, without the copy [`Operators::apply_rows`] makes).
+    pub fn rows_product(&self, which: Which, x: &[f64], w: usize) -> Vec<f64> {
         let mut out = vec![0.0; self.dofs() * w];
         self.spmm(which, x, &mut out, sparse::RowBlock::dense(w));
-        from_rows(&out, w)
+        out
     }
 
     /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]; the mass through

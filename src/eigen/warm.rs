@@ -38,8 +38,8 @@ use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
 use super::lobpcg::{self, rigid_fields};
 use super::{
-    from_rows, random_block, select, solution, to_rows, EigenError, EigenOptions, EigenSolution,
-    ModeCount, Operators, SolveTimings, SolverKind,
+    random_block, select, solution, to_rows, EigenError, EigenOptions, EigenSolution, ModeCount,
+    Operators, SolveTimings, SolverKind,
 };
 use crate::fem::FemModel;
 use faer::{Mat, MatRef, Par};
@@ -286,34 +286,36 @@ pub fn ritz(
         row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
         row[fields..].copy_from_slice(&carried.block[i * cc..(i + 1) * cc]);
     }
-    let x = from_rows(&x_rows, w);
+    // `X` and `M X` are read in place, by rows (a transposed copy of either cost ~3 ms).
+    let x = MatRef::from_row_major_slice(&x_rows, n, w);
     let edited = edited_cells(previous, next, offset);
-    let mx = ops.apply_rows(super::Which::M, &x_rows, w);
+    let mx_rows = ops.rows_product(super::Which::M, &x_rows, w);
+    let mx = MatRef::from_row_major_slice(&mx_rows, n, w);
     let kx = images::stiffness_images(
         &ops,
         next,
         edited.as_ref(),
         previous_solution,
         &x_rows,
-        &mx,
+        mx,
         fields,
     );
     // (`X^T K X` is symmetric but for the carried modes' residuals, which `images` leaves in
     // `K X`: one triangle of it serves.)
-    let mut gk = gram(&x, &kx);
-    let mut gm = gram(&x, &mx);
+    let mut gk = gram(x, kx.as_ref());
+    let mut gm = gram(x, mx);
     let correction = edited
         .as_ref()
         .and_then(|e| edit_patch(next, e))
         .and_then(|p| {
             let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
-            correction::local_correction(&ops, next, &p, &theta, &kx, &mx)
+            correction::local_correction(&ops, next, &p, &theta, &kx, mx)
         });
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
         // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
-        let rows = |a: &Mat<f64>| Mat::from_fn(cor.dofs.len(), w, |i, j| a[(cor.dofs[i], j)]);
-        let grow = |g: &Mat<f64>, a: &Mat<f64>, ad: &Mat<f64>| {
+        let rows = |a: MatRef<'_, f64>| Mat::from_fn(cor.dofs.len(), w, |i, j| a[(cor.dofs[i], j)]);
+        let grow = |g: &Mat<f64>, a: MatRef<'_, f64>, ad: &Mat<f64>| {
             let cross = rows(a).transpose() * &cor.delta;
             let dd = cor.delta.transpose() * ad;
             let s = w + cor.delta.ncols();
@@ -324,8 +326,8 @@ pub fn ritz(
                 (false, false) => dd[(i - w, j - w)],
             })
         };
-        gk = grow(&gk, &kx, &cor.k_delta);
-        gm = grow(&gm, &mx, &cor.m_delta);
+        gk = grow(&gk, kx.as_ref(), &cor.k_delta);
+        gm = grow(&gm, mx, &cor.m_delta);
     }
     let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
@@ -333,9 +335,9 @@ pub fn ritz(
     // already made (two dense products and the patch's sparse rows instead of two more block
     // SpMMs over the whole matrix: 25-30 ms of the default bowl's ~90).
     let c_x = c.get(..w, ..);
-    let mut vectors = &x * c_x;
+    let mut vectors = x * c_x;
     let mut kv = &kx * c_x;
-    let mut mv = &mx * c_x;
+    let mut mv = mx * c_x;
     if let Some(cor) = &correction {
         let local = &cor.delta * c.get(w.., ..);
         for (i, &d) in cor.dofs.iter().enumerate() {
@@ -393,7 +395,7 @@ fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
 
 /// The symmetric Gram matrix `X^T Y` (`Y = A X` for a symmetric `A`) from its lower triangle
 /// alone: half the work of the whole product.
-fn gram(x: &Mat<f64>, y: &Mat<f64>) -> Mat<f64> {
+fn gram(x: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
     use faer::linalg::matmul::triangular::{matmul, BlockStructure};
     let w = x.ncols();
     let mut g = Mat::<f64>::zeros(w, w);

@@ -20,7 +20,7 @@ use super::super::{from_rows, to_rows, Operators};
 use super::add_block_product;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
-use faer::{Mat, Par};
+use faer::{Mat, MatRef, Par};
 
 /// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
 pub(super) struct Correction {
@@ -44,7 +44,7 @@ pub(super) fn local_correction(
     patch: &[usize],
     theta: &[f64],
     kx: &Mat<f64>,
-    mx: &Mat<f64>,
+    mx: MatRef<'_, f64>,
 ) -> Option<Correction> {
     let np = patch.len();
     let (lattice, order_p) = (|v| model.node_lattice_coords(v), model.kind.order() as i64);
@@ -222,7 +222,7 @@ mod tests {
                 ops.apply_block(Which::M, x.as_ref()),
             );
             let theta = vec![0.1; w];
-            let cor = local_correction(&ops, &model, &patch, &theta, &kx, &mx).unwrap();
+            let cor = local_correction(&ops, &model, &patch, &theta, &kx, mx.as_ref()).unwrap();
             let pad = |d: &Mat<f64>| {
                 let mut full = Mat::<f64>::zeros(n, d.ncols());
                 for (i, &dof) in cor.dofs.iter().enumerate() {

@@ -21,7 +21,7 @@
 use super::super::{EigenSolution, Operators, Which};
 use super::{add_block_product, extra_rigid, nodes_near};
 use crate::fem::FemModel;
-use faer::Mat;
+use faer::{Mat, MatRef};
 use std::collections::HashSet;
 
 /// A carried mode whose residual was at most this (the default solver tolerance) is taken as
@@ -39,7 +39,7 @@ pub(super) fn stiffness_images(
     edited: Option<&HashSet<[i64; 3]>>,
     previous_solution: &EigenSolution,
     x_rows: &[f64],
-    mx: &Mat<f64>,
+    mx: MatRef<'_, f64>,
     fields: usize,
 ) -> Mat<f64> {
     let (n, w) = (mx.nrows(), mx.ncols());
@@ -158,7 +158,15 @@ mod tests {
             .and_then(|e| touched_nodes(&next, e))
             .is_some_and(|r| !r.is_empty()));
         let x_rows = crate::eigen::to_rows(x.as_ref());
-        let got = stiffness_images(&ops, &next, edited.as_ref(), &solution, &x_rows, &mx, 6);
+        let got = stiffness_images(
+            &ops,
+            &next,
+            edited.as_ref(),
+            &solution,
+            &x_rows,
+            mx.as_ref(),
+            6,
+        );
         for j in 0..w {
             let (mut diff, mut norm) = (0.0f64, 0.0f64);
             for i in 0..n {
