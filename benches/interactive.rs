@@ -19,7 +19,9 @@
 //! strokes on the default object, one every INTERVAL_MS (default 60), through the plugin's
 //! solver chain on the worker thread; for each stroke, the time from its request until an
 //! answer to it (or to a later stroke) plays, with the worker interrupting an exact solve that
-//! a newer stroke has made obsolete and, for comparison, with every solve run to its end.
+//! a newer stroke has made obsolete and, for comparison, with every solve run to its end; and
+//! the carried answer's largest error after 1, 4 and 12 strokes from the exact answer before
+//! the drag (what a drag that keeps interrupting plays).
 
 use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
@@ -421,8 +423,8 @@ fn main() {
 
 /// `--drag`: edit-to-sound latency of a sculpting drag through the engine's worker.
 mod drag {
-    use super::{grid_of, stroke, MODES};
-    use modalforge::basis::BasisError;
+    use super::{grid_of, max_relative_difference, stroke, MODES};
+    use modalforge::basis::{BasisError, ModeBasis};
     use modalforge::eigen::{EigenOptions, ModeCount, SolverKind, Stop};
     use modalforge::engine::{
         interactive_solvers, AnswerSwitch, Engine, EngineConfig, KeptAnswers, ModeSolver,
@@ -540,5 +542,34 @@ mod drag {
                 control.status().solves - solves_before
             );
         }
+        drift(glass.poisson_ratio);
+    }
+
+    /// While a drag keeps interrupting the exact solve, each stroke's carried answer starts
+    /// from the exact answer before the drag: its largest frequency error against a cold solve
+    /// after 1, 4 and 12 strokes.
+    fn drift(nu: f64) {
+        let options = EigenOptions {
+            count: ModeCount::First(MODES),
+            ..Default::default()
+        };
+        let kind = ElementKind::Hex27Blocks;
+        let solve = |g: &_| ModeBasis::solve(g, kind, nu, SolverKind::Auto, &options);
+        let mut grid = grid_of("bowl:d=16,wall=2");
+        let before = solve(&grid).expect("cold");
+        let mut line =
+            String::from("carried answer from the exact answer before the drag, largest error:");
+        for k in 1..=STROKES {
+            grid = stroke(&grid, true);
+            if [1, 4, STROKES].contains(&k) {
+                let carried = ModeBasis::carried_ritz(&grid, kind, nu, MODES, &before, None)
+                    .expect("comparable")
+                    .expect("carried");
+                let exact = solve(&grid).expect("cold");
+                let e = max_relative_difference(&carried, &exact);
+                line += &format!(" {e:.1e} after {k} stroke{}", if k > 1 { "s" } else { "" });
+            }
+        }
+        println!("{line}");
     }
 }
