@@ -118,7 +118,7 @@ pub enum BasisError {
 /// Relative eigenvalue difference under which modes sound in unison and are voiced as one
 /// ([`strike_align_unisons`]): `2e-6` in `omega^2` is `1e-6` in frequency, two partials that
 /// beat once in `10^6` periods (once in 17 minutes at 1 kHz), one partial to any ear. Exactly
-/// degenerate modes of a symmetric object come out of the solvers equal to ~1e-12; the
+/// degenerate modes of a symmetric object come out of the solvers equal to ~1e-13; the
 /// nearest physical splits the product models (a partial-voxel bowl's pairs, issue 19) are
 /// 1e-4 and wider.
 pub const UNISON_REL: f64 = 2e-6;
@@ -587,6 +587,7 @@ mod tests {
             }
         }
     }
+
     #[test]
     fn a_unison_sounds_the_same_in_any_basis_of_its_eigenspace() {
         // A square bar's bending pairs are exactly degenerate: any rotation of a pair's two

@@ -93,17 +93,9 @@ impl ModeSolver for FemSolver {
     }
 
     fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
-        let (grid, options) = (&r.grid, &r.options);
-        ModeBasis::solve_cached(
-            grid,
-            r.element,
-            r.poisson_ratio,
-            r.solver,
-            options,
-            None,
-            stop,
-        )
-        .map(|b| ObjectModes::Fem(Arc::new(b)))
+        let (grid, nu) = (&r.grid, r.poisson_ratio);
+        ModeBasis::solve_cached(grid, r.element, nu, r.solver, &r.options, None, stop)
+            .map(|b| ObjectModes::Fem(Arc::new(b)))
     }
 }
 
