@@ -322,7 +322,8 @@ fn residuals(ops: &Operators, xb: &Images, theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// Iterates from the block `start` (dense, `n x m`, by rows) until its first `need` columns converge.
+/// Iterates from the block `start` (dense, `n x m`, by rows) until its first `need` columns
+/// converge.
 ///
 /// Locking: once the lowest columns have converged, that prefix leaves the search (hard
 /// locking): it is no longer part of Rayleigh-Ritz or the block updates, and new directions are

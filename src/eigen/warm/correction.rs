@@ -10,8 +10,8 @@
 //!
 //! Cost: the patch's stiffness (a few hundred nodes) is factored sparse, in nested-dissection
 //! order, by the solvers' own [`ShiftedCholesky`] with no shift (2-3x faster than the dense
-//! factor it replaced); `K_pp D` is the right-hand side itself (`K_pp K_pp^-1 r = r`), `M_pp D` and the images of
-//! the combined corrections use the mass's scalar blocks (`M_ab I3`,
+//! factor it replaced); `K_pp D` is the right-hand side itself (`K_pp K_pp^-1 r = r`);
+//! `M_pp D` and the images of the combined corrections use the mass's scalar blocks (`M_ab I3`,
 //! [`crate::fem::sparse::is_scalar_blocks`]) and read the corrections by rows, a node's values
 //! side by side.
 
