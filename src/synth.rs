@@ -23,7 +23,9 @@ pub mod simd;
 
 pub use biquad::{BiquadBank, BiquadCoeffs, BiquadError};
 pub use excitation::{Excitation, ExcitationError, ForcePulse, NoiseForce};
-pub use oscillator::{OscillatorBank, RetuneError, StrikeError, Tuning};
+pub use oscillator::{
+    GlideError, OscillatorBank, RetuneError, StrikeError, Tuning, GLIDE_MAX_LN_RATIO,
+};
 pub use simd::SimdBackend;
 
 /// Helpers shared by the banks' unit tests.

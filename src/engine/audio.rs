@@ -334,7 +334,7 @@ impl AudioEngine {
     fn retune_expressed(&mut self) {
         let voicing = self.voicing;
         for v in self.voices.iter_mut().filter(|v| v.retune_pending) {
-            v.revoice(&voicing);
+            v.express(&voicing);
         }
     }
 
@@ -670,6 +670,12 @@ impl AudioEngine {
         self.blocks = self.blocks.wrapping_add(1);
         if self.blocks.is_multiple_of(SWEEP_BLOCKS) {
             for v in self.voices.iter_mut().filter(|v| !v.modes.is_empty()) {
+                // A glide no expression has moved since the last sweep settles on its
+                // exact anchors (the glide's f32 state has none).
+                if v.bank.is_gliding() && !v.expressed {
+                    v.revoice(&self.voicing);
+                }
+                v.expressed = false;
                 v.measure();
                 v.drop_below(SILENCE_RATIO * v.peak);
                 if v.modes.is_empty() {
@@ -702,6 +708,15 @@ impl AudioEngine {
             .find(|v| v.key == Some(key) && v.fade_left == 0)
             .map(|v| (0..v.modes.len()).map(|j| v.bank.tuning(j)).collect())
             .unwrap_or_default()
+    }
+
+    /// Test access: whether the voice playing `key` is gliding (its last re-tune was the
+    /// cheap shared-ratio one, [`crate::synth::OscillatorBank::glide`]).
+    #[cfg(test)]
+    pub(super) fn voice_glides(&self, key: u8) -> bool {
+        self.voices
+            .iter()
+            .any(|v| v.key == Some(key) && v.fade_left == 0 && v.bank.is_gliding())
     }
 
     /// Test access: voices ringing.

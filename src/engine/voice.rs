@@ -8,7 +8,13 @@
 //! allocates; every other method never allocates (scratch is sized to the capacity).
 
 use super::voicing::{tune, Voicing};
-use crate::synth::{Excitation, OscillatorBank, SimdBackend, Tuning};
+use crate::material::DampedMode;
+use crate::synth::{Excitation, GlideError, OscillatorBank, SimdBackend, Tuning};
+
+/// Glides one key serves before an expression re-tunes on the exact path and keys again
+/// (512 blocks, 0.68 s at 48 kHz): bounds how long the f32 state runs without its exact
+/// anchors (its drift is ~1e-7 of the peak a block, a random walk).
+pub(crate) const REKEY_GLIDES: u32 = 512;
 
 /// A bank mode's identity and reference eigenvalue.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,6 +50,15 @@ pub(crate) struct Voice {
     /// `bend` or `pressure` changed since the last [`Self::revoice`]: the engine re-tunes
     /// the voice once before it next renders, however many expressions arrived.
     pub retune_pending: bool,
+    /// An expression re-tuned the voice since the engine's last silence sweep (a voice left
+    /// gliding without one is settled there, back on its exact anchors).
+    pub expressed: bool,
+    /// Glides since the bank's glide key, and the sounding pitch the key was taken at.
+    glides: u32,
+    key_pitch: f64,
+    /// The bank refused a key for these modes (a steep damping law, a mode too near fs/4):
+    /// expressions re-tune on the exact path until the next strike.
+    key_refused: bool,
     /// Per-note gain the voice is heading to, and the gain it is at (ramped per span).
     pub volume: f64,
     pub volume_now: f64,
@@ -59,8 +74,10 @@ pub(crate) struct Voice {
     // Scratch for [`Self::revoice`]'s in-place path: each mode's new frequency and decay.
     freq_hz: Vec<f64>,
     decay_per_s: Vec<f64>,
+    slope: Vec<f64>,
     pub amps: Vec<f64>,
-    /// Scratch for [`Self::strike`]: which struck modes are already ringing.
+    /// Scratch for [`Self::strike`] (which struck modes are already ringing) and
+    /// [`Self::drop_below`] (which modes stay).
     matched: Vec<bool>,
 }
 
@@ -74,6 +91,10 @@ impl Voice {
             bend: 1.0,
             pressure: 0.0,
             retune_pending: false,
+            expressed: false,
+            glides: 0,
+            key_pitch: 1.0,
+            key_refused: false,
             volume: 1.0,
             volume_now: 1.0,
             muted: false,
@@ -84,6 +105,7 @@ impl Voice {
             tunings: Vec::with_capacity(capacity),
             freq_hz: vec![0.0; capacity],
             decay_per_s: vec![0.0; capacity],
+            slope: vec![0.0; capacity],
             amps: vec![0.0; capacity],
             matched: vec![false; capacity],
         }
@@ -99,6 +121,8 @@ impl Voice {
         self.bend = 1.0;
         self.pressure = 0.0;
         self.retune_pending = false;
+        self.expressed = false;
+        self.key_refused = false;
         self.volume = 1.0;
         self.volume_now = 1.0;
         self.muted = false;
@@ -110,8 +134,58 @@ impl Voice {
         let _ = self.bank.retune(&[]);
     }
 
+    /// Re-tunes the voice for a per-note expression (its tuning, pressure or mute changed,
+    /// the voicing did not): a glide from the bank's key where one is in range
+    /// ([`OscillatorBank::glide`]), a few f32 operations per mode; else an exact
+    /// [`Self::revoice`] that keys the next glides. A key serves [`REKEY_GLIDES`] glides, so
+    /// a long gesture keeps returning to the exact path and its damping law.
+    pub fn express(&mut self, voicing: &Voicing) {
+        self.retune_pending = false;
+        self.expressed = true;
+        if !self.key_refused && self.glides < REKEY_GLIDES {
+            let ratio = self.sounding_pitch() / self.key_pitch;
+            if self.bank.glide(ratio, self.extra_decay(voicing)).is_ok() {
+                self.glides += 1;
+                return;
+            }
+        }
+        self.revoice(voicing);
+        if !self.key_refused {
+            self.key_refused = self.key_glide(voicing).is_err();
+        }
+    }
+
+    /// Keys the bank's glides at the voice's current, exact tuning: each mode's undamped
+    /// eigenvalue at the sounding size, its law decay and that decay's slope in the log of
+    /// the frequency ratio (a central difference, `+-1e-3` in `ln r`: error ~1e-7).
+    fn key_glide(&mut self, voicing: &Voicing) -> Result<(), GlideError> {
+        const STEP_LN: f64 = 1e-3;
+        self.glides = 0;
+        self.key_pitch = self.sounding_pitch();
+        let scale = voicing.eigen_scale(voicing.voxel_size_m(1, self.key_pitch));
+        let law = |w2: f64| match voicing.damping.damp(w2) {
+            DampedMode::Oscillating { decay_per_s, .. } => decay_per_s,
+            DampedMode::Overdamped { decay_per_s } => decay_per_s,
+        };
+        let (up, down) = ((2.0 * STEP_LN).exp(), (-2.0 * STEP_LN).exp());
+        let n = self.modes.len();
+        for (j, m) in self.modes.iter().enumerate() {
+            let w2 = m.unit_eigenvalue * scale;
+            self.freq_hz[j] = w2;
+            self.decay_per_s[j] = m.decay_ratio * law(w2);
+            let (hi, lo) = (law(w2 * up), law(w2 * down));
+            self.slope[j] = if hi > 0.0 && lo > 0.0 {
+                (hi / lo).ln() / (2.0 * STEP_LN)
+            } else {
+                0.0
+            };
+        }
+        self.bank
+            .set_glide_reference(&self.freq_hz[..n], &self.decay_per_s[..n], &self.slope[..n])
+    }
+
     /// Re-tunes every ringing mode for `voicing` (kept phase and amplitude); modes that can no
-    /// longer ring (above Nyquist, overdamped) are dropped.
+    /// longer ring (above Nyquist, overdamped) are dropped. Exact: ends any glide.
     pub fn revoice(&mut self, voicing: &Voicing) {
         self.retune_pending = false;
         let h = voicing.voxel_size_m(1, self.sounding_pitch());
@@ -161,23 +235,20 @@ impl Voice {
         if self.amps[..before].iter().all(|&a| a >= threshold) {
             return 0;
         }
-        self.next_modes.clear();
-        self.tunings.clear();
-        let fs = self.bank.sample_rate_hz();
+        for (keep, &a) in self.matched[..before].iter_mut().zip(&self.amps[..before]) {
+            *keep = a >= threshold;
+        }
+        // Cannot fail: one flag per mode.
+        let _ = self.bank.retain(&self.matched[..before]);
+        let mut kept = 0;
         for j in 0..before {
-            if self.amps[j] >= threshold {
-                self.next_modes.push(self.modes[j]);
-                let (f, d) = self.bank.tuning(j);
-                self.tunings.push(Tuning {
-                    freq_hz: f.min(0.5 * fs),
-                    decay_per_s: d,
-                    gain: self.modes[j].gain,
-                    from: Some(j),
-                });
+            if self.matched[j] {
+                self.modes[kept] = self.modes[j];
+                kept += 1;
             }
         }
-        self.apply();
-        before - self.modes.len()
+        self.modes.truncate(kept);
+        before - kept
     }
 
     /// Current amplitude of every mode into `amps`.
@@ -214,6 +285,11 @@ impl Voice {
         velocity: f64,
         gains: &mut [f64],
     ) {
+        if self.bank.is_gliding() {
+            // The ringing modes carry on from their exact tuning, not the glide's.
+            self.revoice(voicing);
+        }
+        self.key_refused = false;
         let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();

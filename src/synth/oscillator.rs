@@ -18,7 +18,12 @@
 
 mod anchor;
 mod constants;
+mod glide;
 mod kernel;
+mod retune;
+
+pub use glide::{GlideError, GLIDE_MAX_LN_RATIO};
+pub use retune::RetuneError;
 
 use super::excitation::{Excitation, ExcitationError};
 use super::simd::{padded_len, SimdBackend, PAD};
@@ -77,6 +82,8 @@ pub struct OscillatorBank {
     // Most modes `retune` accepts, and its scratch: each old mode's amplitude at the retune.
     capacity: usize,
     carried: Vec<Complex64>,
+    // The shared-ratio re-tune (per-note expression) and whether it owns the state now.
+    glide: glide::Glide,
 }
 
 /// One mode given to [`OscillatorBank::retune`].
@@ -90,60 +97,6 @@ pub struct Tuning {
     pub gain: f64,
     /// The current mode whose ringing this one continues, or `None` to start silent.
     pub from: Option<usize>,
-}
-
-/// Why a retune was refused (the bank is left unchanged).
-#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-pub enum RetuneError {
-    /// More modes than the bank was prepared for.
-    #[error("{got} modes do not fit a bank prepared for {capacity}")]
-    TooMany {
-        /// Modes given.
-        got: usize,
-        /// The bank's capacity.
-        capacity: usize,
-    },
-    /// A mode that cannot ring in this bank.
-    #[error(
-        "mode {index} ({freq_hz} Hz, decay {decay_per_s} /s) must lie in (0, fs/2) and oscillate"
-    )]
-    BadMode {
-        /// Index in the new modes.
-        index: usize,
-        /// Its frequency.
-        freq_hz: f64,
-        /// Its decay.
-        decay_per_s: f64,
-    },
-    /// [`OscillatorBank::retune_in_place`] was given other than one frequency and one decay
-    /// per mode.
-    #[error("in-place retune got {freqs} frequencies and {decays} decays for {len} modes")]
-    LengthMismatch {
-        /// Frequencies given.
-        freqs: usize,
-        /// Decays given.
-        decays: usize,
-        /// Modes playing now.
-        len: usize,
-    },
-    /// A mode would cross a quarter of the sample rate, where the kernel changes from direct to
-    /// mirrored slots: [`OscillatorBank::retune_in_place`] keeps the layout, so use
-    /// [`OscillatorBank::retune`].
-    #[error("mode {index} crosses fs/4 and needs a full retune")]
-    CrossesQuarterRate {
-        /// Index of the mode.
-        index: usize,
-    },
-    /// `from` names a mode the bank does not have.
-    #[error("mode {index} continues mode {from}, but the bank plays {len}")]
-    NoSuchMode {
-        /// Index in the new modes.
-        index: usize,
-        /// The missing source mode.
-        from: usize,
-        /// Modes playing now.
-        len: usize,
-    },
 }
 
 impl OscillatorBank {
@@ -196,11 +149,15 @@ impl OscillatorBank {
             since_anchor: 0,
             acc: vec![0.0; 2 * ANCHOR_SAMPLES * PAD],
             carried: vec![Complex64::new(0.0, 0.0); capacity],
+            glide: glide::Glide::new(slots, capacity),
         }
     }
 
-    /// Frequency (Hz) and decay (1/s) of mode `i`.
+    /// Frequency (Hz) and decay (1/s) of mode `i` (while gliding, the glide's, in f64).
     pub fn tuning(&self, i: usize) -> (f64, f64) {
+        if self.glide.active {
+            return self.glide.tuning(i);
+        }
         let l = self.lambda[i];
         (l.im / TAU, -l.re)
     }
@@ -210,185 +167,21 @@ impl OscillatorBank {
         self.capacity
     }
 
-    /// Replaces the bank's modes with `modes` at the next sample, without allocating.
-    ///
-    /// A mode with `from: Some(i)` carries on ringing from the current mode `i`: its exact
-    /// complex amplitude now (the value it is about to play, and its phase) is kept and only its
-    /// frequency and decay change, so the output stays continuous (no click) and a damping
-    /// change acts on notes already ringing. Other modes start silent. The anchor grid restarts
-    /// at the next sample.
-    pub fn retune(&mut self, modes: &[Tuning]) -> Result<(), RetuneError> {
-        if modes.len() > self.capacity {
-            return Err(RetuneError::TooMany {
-                got: modes.len(),
-                capacity: self.capacity,
-            });
-        }
-        let fs = self.sample_rate_hz;
-        for (i, t) in modes.iter().enumerate() {
-            let valid = rings(t.freq_hz, t.decay_per_s, fs) && t.gain.is_finite();
-            if !valid {
-                return Err(RetuneError::BadMode {
-                    index: i,
-                    freq_hz: t.freq_hz,
-                    decay_per_s: t.decay_per_s,
-                });
-            }
-            if let Some(from) = t.from.filter(|&f| f >= self.len) {
-                return Err(RetuneError::NoSuchMode {
-                    index: i,
-                    from,
-                    len: self.len,
-                });
-            }
-        }
-        // Every current mode's exact amplitude at the next sample (at the end of an anchor
-        // interval, the anchor's own exact step, with no exponentials).
-        if self.since_anchor == ANCHOR_SAMPLES {
-            self.advance_anchor();
-        }
-        let dt = self.since_anchor as f64 / fs;
-        for i in 0..self.len {
-            let k = self.slot[i];
-            let z = Complex64::new(self.anchors.z_re[k], self.anchors.z_im[k]);
-            self.carried[i] = if self.since_anchor == 0 {
-                z
-            } else {
-                z * (self.lambda[i] * dt).exp()
-            };
-        }
-        // New layout: modes above fs/4 run mirrored (see `kernel`) in the slots after `split`.
-        let n_high = modes.iter().filter(|t| t.freq_hz > 0.25 * fs).count();
-        let old_used = self.used;
-        self.split = padded_len(modes.len() - n_high);
-        self.used = self.split + padded_len(n_high);
-        // Slots from `used` on are always zero (nothing writes past it), so clearing the
-        // slots either layout uses is enough. Clearing the whole capacity instead (256 modes:
-        // 17 kB a voice) was the audio thread's largest cost in the soak, whose automation
-        // re-voices 64 voices every block (perf: memset 4.4 % of the samples, rendering 1.4).
-        let clear = old_used.max(self.used);
-        for v in [&mut self.y, &mut self.dy, &mut self.kappa, &mut self.c2] {
-            v[..clear].fill(0.0);
-        }
-        self.anchors.clear_first(clear);
-        let (mut next_low, mut next_high) = (0, self.split);
-        self.slot.clear();
-        self.lambda.clear();
-        self.gain.clear();
-        for t in modes {
-            let slot = if t.freq_hz > 0.25 * fs {
-                &mut next_high
-            } else {
-                &mut next_low
-            };
-            self.slot.push(*slot);
-            *slot += 1;
-            self.lambda
-                .push(Complex64::new(-t.decay_per_s, TAU * t.freq_hz));
-            self.gain.push(t.gain);
-        }
-        self.len = modes.len();
-        self.write_constants();
-        for (i, t) in modes.iter().enumerate() {
-            if let Some(from) = t.from {
-                // The next sample is an anchor (even on the new grid): no mirror sign.
-                let (k, c) = (self.slot[i], self.carried[from]);
-                (self.anchors.z_re[k], self.anchors.z_im[k]) = (c.re, c.im);
-                self.y[k] = c.im as f32;
-                self.dy[k] = self.anchors.second_state(k, c) as f32;
-            }
-        }
-        self.since_anchor = 0;
-        Ok(())
-    }
-
-    /// Moves every mode to a new frequency and decay in place, at the next sample: what
-    /// [`Self::retune`] does with `from: Some(i)` for each mode `i` and the same gains, without
-    /// re-laying out the bank, at a quarter of its cost (the constants four modes at a time, no
-    /// state cleared). Per-note expression re-tunes a voice this way every block.
-    ///
-    /// Refused, with the bank unchanged, when the lengths differ from [`Self::len`], a mode
-    /// cannot ring ([`RetuneError::BadMode`]), or a mode crosses a quarter of the sample rate
-    /// ([`RetuneError::CrossesQuarterRate`]: it changes kernel halves; use [`Self::retune`]).
-    /// Never allocates.
-    pub fn retune_in_place(
-        &mut self,
-        freq_hz: &[f64],
-        decay_per_s: &[f64],
-    ) -> Result<(), RetuneError> {
-        if freq_hz.len() != self.len || decay_per_s.len() != self.len {
-            return Err(RetuneError::LengthMismatch {
-                freqs: freq_hz.len(),
-                decays: decay_per_s.len(),
-                len: self.len,
-            });
-        }
-        let fs = self.sample_rate_hz;
-        for (i, (&f, &d)) in freq_hz.iter().zip(decay_per_s).enumerate() {
-            if !rings(f, d, fs) {
-                return Err(RetuneError::BadMode {
-                    index: i,
-                    freq_hz: f,
-                    decay_per_s: d,
-                });
-            }
-            if (f > 0.25 * fs) != (self.slot[i] >= self.split) {
-                return Err(RetuneError::CrossesQuarterRate { index: i });
-            }
-        }
-        // Every mode's exact amplitude now: a block-sized render ends on an anchor, whose own
-        // exact step brings it here; otherwise carried with an exponential.
-        if self.since_anchor == ANCHOR_SAMPLES {
-            self.advance_anchor();
-        }
-        if self.since_anchor != 0 {
-            let dt = self.since_anchor as f64 / fs;
-            constants::carry(
-                self.backend,
-                dt,
-                &self.lambda[..self.len],
-                &self.slot,
-                &mut self.anchors,
-            );
-        }
-        for (l, (&f, &d)) in self.lambda.iter_mut().zip(freq_hz.iter().zip(decay_per_s)) {
-            *l = Complex64::new(-d, TAU * f);
-        }
-        self.write_constants();
-        // The f32 state restarts from the exact one, as at an anchor (padded slots stay 0).
-        let n = self.used;
-        for k in 0..n {
-            let z = Complex64::new(self.anchors.z_re[k], self.anchors.z_im[k]);
-            self.y[k] = z.im as f32;
-            self.dy[k] = self.anchors.second_state(k, z) as f32;
-        }
-        self.since_anchor = 0;
-        Ok(())
-    }
-
-    /// Writes the kernel and anchor constants of every mode from `lambda`.
-    fn write_constants(&mut self) {
-        constants::write(
-            self.backend,
-            self.sample_rate_hz,
-            &self.lambda[..self.len],
-            constants::Slots {
-                slot: &self.slot,
-                split: self.split,
-                kappa: &mut self.kappa,
-                c2: &mut self.c2,
-                anchors: &mut self.anchors,
-            },
-        );
-    }
-
     /// Each mode's current amplitude `|z|` (bank mode order) into `out[..len]`, for deciding
     /// which modes are quiet enough to drop. Never allocates.
     pub fn amplitudes(&self, out: &mut [f64]) {
+        if self.glide.active {
+            for (o, &k) in out.iter_mut().zip(&self.slot[..self.len]) {
+                *o = self.glide.magnitude(k, self.y[k], self.dy[k]);
+            }
+            return;
+        }
         let dt = self.since_anchor as f64 / self.sample_rate_hz;
         for (i, o) in out.iter_mut().take(self.len).enumerate() {
             let k = self.slot[i];
-            let z = self.anchors.z_re[k].hypot(self.anchors.z_im[k]);
+            let (re, im) = (self.anchors.z_re[k], self.anchors.z_im[k]);
+            // Amplitudes are far from overflow: no need for libm's slow `hypot`.
+            let z = (re * re + im * im).sqrt();
             *o = z * (self.lambda[i].re * dt).exp();
         }
     }
@@ -415,6 +208,7 @@ impl OscillatorBank {
 
     /// Silences every mode. Never allocates.
     pub fn reset(&mut self) {
+        self.glide.active = false;
         self.y.fill(0.0);
         self.dy.fill(0.0);
         self.anchors.reset();
@@ -424,6 +218,7 @@ impl OscillatorBank {
     /// Never allocates. Costs two complex exponentials per mode for a contact pulse.
     pub fn strike(&mut self, excitation: Excitation, velocity: f64) -> Result<(), StrikeError> {
         check_velocity(velocity)?;
+        self.settle();
         for i in 0..self.len {
             self.add_strike(i, self.gain[i] * velocity, excitation);
         }
@@ -448,6 +243,7 @@ impl OscillatorBank {
         if let Some(i) = gains.iter().position(|g| !g.is_finite()) {
             return Err(StrikeError::NonFiniteGain(i));
         }
+        self.settle();
         for (i, &g) in gains.iter().enumerate() {
             self.add_strike(i, g * velocity, excitation);
         }
@@ -481,7 +277,13 @@ impl OscillatorBank {
         let mut done = 0;
         while done < out.len() {
             if self.since_anchor == ANCHOR_SAMPLES {
-                self.advance_anchor();
+                if self.glide.active {
+                    // A glide's f32 state runs on (its anchors are stale); the clock keeps
+                    // the parity the mirrored slots' sign follows.
+                    self.since_anchor = 0;
+                } else {
+                    self.advance_anchor();
+                }
             }
             let n = (out.len() - done).min(ANCHOR_SAMPLES - self.since_anchor);
             kernel::render(

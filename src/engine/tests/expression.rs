@@ -146,7 +146,7 @@ fn volume_scales_the_note_after_a_one_block_ramp() {
 }
 
 /// Issue 15's glide: a ringing note glides from +1 to +2 semitones over 100 ms, one tuning a
-/// 64-sample block (how hosts deliver note expressions). Truths: the scaling law at every
+/// 64-sample block (how hosts deliver note expressions), on the cheap glide path. Truths: the scaling law at every
 /// block (every mode at `2^(s/12)` times its untuned frequency, within the issue's 1 cent;
 /// the Rayleigh shift of the damped frequency is under 0.01 cent for steel), and no click:
 /// the step across every block boundary, where a retune lands, is no larger than the note's
@@ -177,6 +177,15 @@ fn a_tuning_glide_follows_every_block_without_a_click() {
             let cents = 1200.0 * (t.0 / (p.0 * ratio)).log2();
             assert!(cents.abs() < 1.0, "block {b}: {cents:+.4} cents");
         }
+        // Every step after the first (which keys) is a glide, the cheap re-tune.
+        assert!(a.voice_glides(1), "block {b} re-tuned on the exact path");
+    }
+    // Left alone, the glide settles on the exact anchors at the next silence sweep.
+    render(&mut a, 64 * 16, &[]);
+    assert!(!a.voice_glides(1));
+    for (p, t) in plain.iter().zip(a.voice_tunings(1)) {
+        let cents = 1200.0 * (t.0 / (p.0 * 2f64.powf(2.0 / 12.0))).log2();
+        assert!(cents.abs() < 1.0, "settled: {cents:+.4} cents");
     }
     let step = |x: &[f32]| {
         x.windows(2)

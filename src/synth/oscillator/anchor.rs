@@ -52,6 +52,31 @@ impl Anchors {
         advance_plain(self, y, dy)
     }
 
+    /// Moves slot `from`'s state and constants to slot `to`.
+    pub fn move_slot(&mut self, from: usize, to: usize) {
+        for v in self.all() {
+            v[to] = v[from];
+        }
+    }
+
+    /// Silences slots `range` and zeroes their constants.
+    pub fn clear(&mut self, range: std::ops::Range<usize>) {
+        for v in self.all() {
+            v[range.clone()].fill(0.0);
+        }
+    }
+
+    fn all(&mut self) -> [&mut Vec<f64>; 6] {
+        [
+            &mut self.z_re,
+            &mut self.z_im,
+            &mut self.step_re,
+            &mut self.step_im,
+            &mut self.back_re,
+            &mut self.back_im,
+        ]
+    }
+
     /// Silences every slot.
     pub fn reset(&mut self) {
         self.z_re.fill(0.0);
@@ -61,16 +86,7 @@ impl Anchors {
     /// Silences the first `slots` slots and zeroes their constants (before a new layout is
     /// written).
     pub fn clear_first(&mut self, slots: usize) {
-        for v in [
-            &mut self.z_re,
-            &mut self.z_im,
-            &mut self.step_re,
-            &mut self.step_im,
-            &mut self.back_re,
-            &mut self.back_im,
-        ] {
-            v[..slots].fill(0.0);
-        }
+        self.clear(0..slots);
     }
 }
 

@@ -210,7 +210,16 @@ fn invalid_strikes_are_refused() {
 }
 
 /// Three tunings, one mirrored (above fs/4), each continuing the same-numbered current mode.
-fn carried(freqs: &[f64], decays: &[f64]) -> Vec<Tuning> {
+/// Unit-gain modes that start silent.
+pub(super) fn fresh(freqs: &[f64], decays: &[f64]) -> Vec<Tuning> {
+    carried(freqs, decays)
+        .into_iter()
+        .map(|t| Tuning { from: None, ..t })
+        .collect()
+}
+
+/// Unit-gain modes each continuing the current mode of its index.
+pub(super) fn carried(freqs: &[f64], decays: &[f64]) -> Vec<Tuning> {
     freqs
         .iter()
         .zip(decays)
@@ -445,16 +454,7 @@ fn simd_constants_match_libm() {
     // (a few ulps). `kappa` and `c2` are f32: within one f32 ulp (1.2e-7 relative).
     for fs in [44100.0, 48000.0, 192000.0] {
         let (f, d) = spread(fs, 1.0);
-        let tunings: Vec<Tuning> = f
-            .iter()
-            .zip(&d)
-            .map(|(&freq_hz, &decay_per_s)| Tuning {
-                freq_hz,
-                decay_per_s,
-                gain: 1.0,
-                from: None,
-            })
-            .collect();
+        let tunings: Vec<Tuning> = fresh(&f, &d);
         let mut reference = OscillatorBank::with_capacity(32, fs, SimdBackend::Scalar);
         reference.retune(&tunings).unwrap();
         for backend in SimdBackend::all_available() {
@@ -500,18 +500,7 @@ fn in_place_retune_continues_each_mode_exactly() {
     let (t1, t2, end) = (7_013, 7_013 + 640, 7_013 + 640 + 3_000);
     for backend in SimdBackend::all_available() {
         let mut bank = OscillatorBank::with_capacity(32, fs, backend);
-        bank.retune(
-            &f1.iter()
-                .zip(&d1)
-                .map(|(&freq_hz, &decay_per_s)| Tuning {
-                    freq_hz,
-                    decay_per_s,
-                    gain: 1.0,
-                    from: None,
-                })
-                .collect::<Vec<_>>(),
-        )
-        .unwrap();
+        bank.retune(&fresh(&f1, &d1)).unwrap();
         bank.strike(Excitation::Impulse, 1.0).unwrap();
         let mut out = vec![0f32; end];
         bank.render(&mut out[..t1]);
