@@ -16,6 +16,13 @@ use crate::synth::{Excitation, GlideError, OscillatorBank, SimdBackend, Tuning};
 /// anchors (its drift is ~1e-7 of the peak a block, a random walk).
 pub(crate) const REKEY_GLIDES: u32 = 512;
 
+/// A key that could not hold this many glides (a mode next to Nyquist or fs/4 bounds its
+/// range tightly): the next [`BACKOFF_EXPRESSIONS`] expressions re-tune on the exact path
+/// without keying, so that a key is not taken, at the cost of two exact re-tunes, every
+/// block.
+const SHORT_KEY_GLIDES: u32 = 4;
+const BACKOFF_EXPRESSIONS: u32 = 64;
+
 /// A bank mode's identity and reference eigenvalue.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct SlotMode {
@@ -59,6 +66,8 @@ pub(crate) struct Voice {
     /// The bank refused a key for these modes (a steep damping law, a mode too near fs/4):
     /// expressions re-tune on the exact path until the next strike.
     key_refused: bool,
+    /// Expressions left to re-tune on the exact path after a short-lived key.
+    key_backoff: u32,
     /// Per-note gain the voice is heading to, and the gain it is at (ramped per span).
     pub volume: f64,
     pub volume_now: f64,
@@ -95,6 +104,7 @@ impl Voice {
             glides: 0,
             key_pitch: 1.0,
             key_refused: false,
+            key_backoff: 0,
             volume: 1.0,
             volume_now: 1.0,
             muted: false,
@@ -123,6 +133,7 @@ impl Voice {
         self.retune_pending = false;
         self.expressed = false;
         self.key_refused = false;
+        self.key_backoff = 0;
         self.volume = 1.0;
         self.volume_now = 1.0;
         self.muted = false;
@@ -142,11 +153,24 @@ impl Voice {
     pub fn express(&mut self, voicing: &Voicing) {
         self.retune_pending = false;
         self.expressed = true;
+        if self.key_backoff > 0 {
+            self.key_backoff -= 1;
+            self.revoice(voicing);
+            return;
+        }
         if !self.key_refused && self.glides < REKEY_GLIDES {
             let ratio = self.sounding_pitch() / self.key_pitch;
-            if self.bank.glide(ratio, self.extra_decay(voicing)).is_ok() {
-                self.glides += 1;
-                return;
+            match self.bank.glide(ratio, self.extra_decay(voicing)) {
+                Ok(()) => {
+                    self.glides += 1;
+                    return;
+                }
+                Err(GlideError::OutOfRange { .. }) if self.glides < SHORT_KEY_GLIDES => {
+                    self.key_backoff = BACKOFF_EXPRESSIONS;
+                    self.revoice(voicing);
+                    return;
+                }
+                Err(_) => {}
             }
         }
         self.revoice(voicing);
@@ -290,6 +314,7 @@ impl Voice {
             self.revoice(voicing);
         }
         self.key_refused = false;
+        self.key_backoff = 0;
         let h = voicing.voxel_size_m(1, self.sounding_pitch());
         let fs = self.bank.sample_rate_hz();
         self.next_modes.clear();
