@@ -202,3 +202,69 @@ fn a_tuning_glide_follows_every_block_without_a_click() {
         );
     }
 }
+
+/// A voicing change while a note glides (the size 10 % larger; the damping's mass term up by
+/// 20 /s): the glide's key is dropped with the old voicing, so the next expression re-tunes
+/// exactly for the new one and keys again. Truths: the scaling law, every mode at
+/// `2^(s/12) / 1.1` times its frequency as struck (the Rayleigh shift of steel's damped
+/// frequencies is below 1e-6), and the Rayleigh law's decay `(alpha1 + alpha2 omega_n^2) / 2`
+/// at that frequency: exact (1e-9) after the re-key, within the glide's 0.5 % one step later.
+/// A stale key would leave the note 10 % sharp or its decays 10 /s short.
+#[test]
+fn a_voicing_change_while_gliding_keys_again() {
+    let voicing = steel();
+    let DampingParams::Rayleigh { alpha1, alpha2 } = voicing.damping else {
+        panic!("steel is Rayleigh-damped");
+    };
+    for size in [1.0, 1.1] {
+        let changed = Voicing {
+            size_m: size * voicing.size_m,
+            damping: DampingParams::Rayleigh {
+                alpha1: alpha1 + 20.0,
+                alpha2,
+            },
+            ..voicing
+        };
+        let (mut a, _ca) = ready(EngineConfig::default(), voicing, bar(24));
+        render(&mut a, 640, &[strike(1, 1.0)]);
+        let plain = a.voice_tunings(1);
+        for semitones in [0.5, 0.6] {
+            render(
+                &mut a,
+                64,
+                &[express(1, Expression::TuningSemitones(semitones))],
+            );
+        }
+        assert!(a.voice_glides(1));
+        a.set_voicing(changed).unwrap();
+        render(&mut a, 64, &[]);
+        assert!(!a.voice_glides(1));
+        for (semitones, decay_tolerance) in [(0.7, 1e-9), (0.8, 5e-3)] {
+            render(
+                &mut a,
+                64,
+                &[express(1, Expression::TuningSemitones(semitones))],
+            );
+            let ratio = 2f64.powf(semitones / 12.0) / size;
+            let got = a.voice_tunings(1);
+            assert_eq!(got.len(), plain.len());
+            for (t, p) in got.iter().zip(&plain) {
+                let want_hz = p.0 * ratio;
+                assert!(
+                    (t.0 / want_hz - 1.0).abs() < 1e-5,
+                    "{semitones}: {} vs {want_hz} Hz",
+                    t.0
+                );
+                let wn2 = ((std::f64::consts::TAU * p.0).powi(2) + p.1 * p.1) * ratio * ratio;
+                let want_decay = 0.5 * (alpha1 + 20.0 + alpha2 * wn2);
+                assert!(
+                    (t.1 / want_decay - 1.0).abs() < decay_tolerance,
+                    "{semitones}: {} vs {want_decay} /s",
+                    t.1
+                );
+            }
+        }
+        // The second expression glided from the new key.
+        assert!(a.voice_glides(1));
+    }
+}

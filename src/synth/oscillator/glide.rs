@@ -92,8 +92,6 @@ pub(super) struct Glide {
     mode_wn2: Vec<f64>,
     mode_decay: Vec<f64>,
     mode_slope: Vec<f64>,
-    // Scratch for carrying a key through a re-tune that keeps or drops modes.
-    carried: [Vec<f64>; 3],
     /// A key for the bank's modes and layout: a glide's ratio is relative to it.
     pub keyed: bool,
     /// The kernel state is a glide's: the anchors are stale.
@@ -126,7 +124,6 @@ impl Glide {
             mode_wn2: vec![0.0; capacity],
             mode_decay: vec![0.0; capacity],
             mode_slope: vec![0.0; capacity],
-            carried: std::array::from_fn(|_| vec![0.0; capacity]),
             keyed: false,
             active: false,
             ratio_lo: 1.0,
@@ -138,36 +135,9 @@ impl Glide {
         }
     }
 
-    /// Carries the key through a re-tune whose mode `i` continues old mode `from[i]` (every
-    /// mode continues one: a drop or a re-strike of ringing modes), for the new layout; the
-    /// key is dropped if the new layout leaves no glide range.
-    pub fn carry_key(
-        &mut self,
-        fs: f64,
-        from: impl Iterator<Item = usize>,
-        slot: &[usize],
-        split: usize,
-        used: usize,
-    ) {
-        let n = slot.len();
-        let [w, d, p] = &mut self.carried;
-        for (i, j) in from.enumerate().take(n) {
-            (w[i], d[i], p[i]) = (self.mode_wn2[j], self.mode_decay[j], self.mode_slope[j]);
-        }
-        let mut carried = std::mem::take(&mut self.carried);
-        let [w, d, p] = &mut carried;
-        let kept = self.key(fs, slot, split, used, &w[..n], &d[..n], &p[..n], false);
-        self.carried = carried;
-        if kept.is_err() {
-            self.keyed = false;
-        }
-    }
-
     /// Records the key (per mode: `omega_n^2` in rad^2/s^2, the law's decay in 1/s, its slope
     /// in `ln r`) for the layout `slot`/`split`/`used`, and the ratio and extra-decay range
     /// within which no mode changes kernel half, reaches Nyquist or stops oscillating.
-    /// `at_ratio_one`: the bank's tuning is the key's own (a new key), not a glide from it
-    /// (a key carried through a re-tune).
     #[allow(clippy::too_many_arguments)]
     pub fn key(
         &mut self,
@@ -178,7 +148,6 @@ impl Glide {
         wn2_rad2_s2: &[f64],
         decay_per_s: &[f64],
         slope: &[f64],
-        at_ratio_one: bool,
     ) -> Result<(), GlideError> {
         let n = slot.len();
         if wn2_rad2_s2.len() != n || decay_per_s.len() != n || slope.len() != n {
@@ -241,9 +210,7 @@ impl Glide {
         }
         (self.ratio_lo, self.ratio_hi, self.extra_max_per_s) = (lo, hi, extra_max);
         self.keyed = true;
-        if at_ratio_one {
-            (self.ratio, self.ln_ratio) = (1.0, 0.0);
-        }
+        (self.ratio, self.ln_ratio) = (1.0, 0.0);
         Ok(())
     }
 

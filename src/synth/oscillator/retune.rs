@@ -147,18 +147,9 @@ impl OscillatorBank {
             self.gain.push(t.gain);
         }
         self.len = modes.len();
-        // A key survives modes that only carry on (a drop, a re-strike of ringing modes).
-        if self.glide.keyed && modes.iter().all(|t| t.from.is_some()) {
-            self.glide.carry_key(
-                fs,
-                modes.iter().filter_map(|t| t.from),
-                &self.slot,
-                self.split,
-                self.used,
-            );
-        } else {
-            self.glide.keyed = false;
-        }
+        // New modes or tunings: the key no longer describes them (a drop keeps it,
+        // `retain`).
+        self.glide.keyed = false;
         self.write_constants();
         for (i, t) in modes.iter().enumerate() {
             if let Some(from) = t.from {
@@ -340,7 +331,6 @@ impl OscillatorBank {
             wn2_rad2_s2,
             decay_per_s,
             slope,
-            true,
         );
         if result.is_err() {
             self.glide.keyed = false;
