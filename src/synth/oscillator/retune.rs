@@ -52,6 +52,14 @@ pub enum RetuneError {
         /// Index of the mode.
         index: usize,
     },
+    /// [`OscillatorBank::retain`] was given other than one flag per mode.
+    #[error("drop got {got} keep flags for {len} modes")]
+    KeepCount {
+        /// Flags given.
+        got: usize,
+        /// Modes playing now.
+        len: usize,
+    },
     /// `from` names a mode the bank does not have.
     #[error("mode {index} continues mode {from}, but the bank plays {len}")]
     NoSuchMode {
@@ -171,9 +179,8 @@ impl OscillatorBank {
     /// mode. Never allocates.
     pub fn retain(&mut self, keep: &[bool]) -> Result<(), RetuneError> {
         if keep.len() != self.len {
-            return Err(RetuneError::LengthMismatch {
-                freqs: keep.len(),
-                decays: keep.len(),
+            return Err(RetuneError::KeepCount {
+                got: keep.len(),
                 len: self.len,
             });
         }

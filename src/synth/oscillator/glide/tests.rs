@@ -274,6 +274,9 @@ fn a_drop_moves_the_kept_modes_without_touching_them() {
         }
     }
     let mut bank = keyed_bank(SimdBackend::detect(), 1.0);
-    assert!(bank.retain(&keep[..5]).is_err());
+    assert_eq!(
+        bank.retain(&keep[..5]),
+        Err(RetuneError::KeepCount { got: 5, len: 24 })
+    );
     assert_eq!(bank.len(), 24);
 }
