@@ -83,6 +83,9 @@ pub(crate) struct Voice {
     // Scratch for [`Self::revoice`]'s in-place path: each mode's new frequency and decay.
     freq_hz: Vec<f64>,
     decay_per_s: Vec<f64>,
+    // Scratch for [`Self::key_glide`]: each mode's undamped eigenvalue (rad^2/s^2) and its
+    // decay's slope (its law decay goes in `decay_per_s`).
+    wn2_rad2_s2: Vec<f64>,
     slope: Vec<f64>,
     pub amps: Vec<f64>,
     /// Scratch for [`Self::strike`] (which struck modes are already ringing) and
@@ -115,6 +118,7 @@ impl Voice {
             tunings: Vec::with_capacity(capacity),
             freq_hz: vec![0.0; capacity],
             decay_per_s: vec![0.0; capacity],
+            wn2_rad2_s2: vec![0.0; capacity],
             slope: vec![0.0; capacity],
             amps: vec![0.0; capacity],
             matched: vec![false; capacity],
@@ -195,7 +199,7 @@ impl Voice {
         let n = self.modes.len();
         for (j, m) in self.modes.iter().enumerate() {
             let w2 = m.unit_eigenvalue * scale;
-            self.freq_hz[j] = w2;
+            self.wn2_rad2_s2[j] = w2;
             self.decay_per_s[j] = m.decay_ratio * law(w2);
             let (hi, lo) = (law(w2 * up), law(w2 * down));
             self.slope[j] = if hi > 0.0 && lo > 0.0 {
@@ -204,8 +208,11 @@ impl Voice {
                 0.0
             };
         }
-        self.bank
-            .set_glide_reference(&self.freq_hz[..n], &self.decay_per_s[..n], &self.slope[..n])
+        self.bank.set_glide_reference(
+            &self.wn2_rad2_s2[..n],
+            &self.decay_per_s[..n],
+            &self.slope[..n],
+        )
     }
 
     /// Re-tunes every ringing mode for `voicing` (kept phase and amplitude); modes that can no

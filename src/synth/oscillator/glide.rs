@@ -112,6 +112,12 @@ fn law_factor(x: f64) -> f64 {
     1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0)))
 }
 
+/// A bound on the law's decay `d` (slope `p`) anywhere in a glide's range: 1 % above the
+/// cubic's largest value there.
+fn top_decay(d: f64, p: f64) -> f64 {
+    1.01 * d * law_factor(p.abs() * GLIDE_MAX_LN_RATIO)
+}
+
 impl Glide {
     /// Room for `slots` kernel slots and `capacity` modes. Allocates.
     pub fn new(slots: usize, capacity: usize) -> Self {
@@ -172,8 +178,7 @@ impl Glide {
                 return Err(GlideError::BadKey { index: i });
             }
             let wn = w2.sqrt();
-            // 1 % above the cubic's largest decay over the range.
-            let top = 1.01 * d * law_factor(p.abs() * GLIDE_MAX_LN_RATIO);
+            let top = top_decay(d, p);
             dmax = dmax.max(top);
             if slot[i] < split {
                 // The damped frequency is below r omega_n.
@@ -187,7 +192,7 @@ impl Glide {
         // Every mode keeps oscillating, and within the series' range, at the lowest ratio.
         let mut extra_max = MAX_DECAY_PER_SAMPLE * fs - dmax;
         for i in 0..n {
-            let top = 1.01 * decay_per_s[i] * law_factor(slope[i].abs() * GLIDE_MAX_LN_RATIO);
+            let top = top_decay(decay_per_s[i], slope[i]);
             let wd_min = (wn2_rad2_s2[i] * lo * lo - top * top).max(0.0).sqrt();
             extra_max = extra_max.min(0.999 * wd_min - top);
         }
