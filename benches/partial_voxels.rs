@@ -12,7 +12,10 @@
 //! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly [ELEMENT]`
 //! times assembly alone on the two bowls, partial voxels against the staircase of the same
 //! bowl (issue 19's "assembly within 2x"), for ELEMENT or all three; `--repeat N` repeats each
-//! measurement N times (for a profiler).
+//! measurement N times, staircase and partial alternately, and keeps the fastest. The times
+//! include the page faults of the matrices' fresh memory, which the allocator hands out
+//! differently from run to run (on a 2-core VM the staircase's 16-voxel hex8i assembly took
+//! 1.3-5.6 ms by that alone): compare medians of several runs.
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
@@ -132,12 +135,12 @@ fn assembly_ratios() {
         let staircase = shape.rasterize_staircase(1.0, 1.0).expect("raster");
         let partial = shape.rasterize(1.0, 1.0).expect("raster");
         for &kind in &kinds {
-            let time = |grid: &VoxelGrid| {
-                (0..repeat)
-                    .map(|_| median_assembly_ms(grid, kind).0)
-                    .fold(f64::INFINITY, f64::min)
-            };
-            let (s, p) = (time(&staircase), time(&partial));
+            // Alternately, so that the machine's drift falls on both alike.
+            let (mut s, mut p) = (f64::INFINITY, f64::INFINITY);
+            for _ in 0..repeat {
+                s = s.min(median_assembly_ms(&staircase, kind).0);
+                p = p.min(median_assembly_ms(&partial, kind).0);
+            }
             println!(
                 "{spec:<18} {:<8} {s:>13.1} {p:>11.1} {:>6.2}",
                 kind.to_string(),

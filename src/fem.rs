@@ -19,7 +19,7 @@ pub mod sparse;
 use crate::shape::{lattice_coords, lattice_index, VoxelFill};
 pub use cache::ElementCache;
 pub use element::{ElementKind, UnitElement};
-use sparse::{BlockPattern, Blocks};
+use sparse::{BlockPattern, Blocks, ElementBlocks};
 
 use crate::shape::{ShapeError, VoxelGrid};
 
@@ -82,12 +82,12 @@ impl FemModel {
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
-        let mut unit = UnitElement::new(kind, poisson_ratio);
+        let unit = UnitElement::new(kind, poisson_ratio);
+        let mut unit = ElementBlocks::from_dense(kind.nodes(), &unit.stiffness, &unit.mass);
         // Voxel reference units: K = E h K_ref and M = rho h^3 M_ref with h the element edge.
         let (k_scale, m_scale) = (block as f64, (block * block * block) as f64);
         if block > 1 {
-            unit.stiffness.iter_mut().for_each(|v| *v *= k_scale);
-            unit.mass.iter_mut().for_each(|v| *v *= m_scale);
+            unit.scale(k_scale, m_scale);
         }
         let p = kind.order();
         let n1 = p + 1;
@@ -142,8 +142,7 @@ impl FemModel {
         let mut fills = vec![0.0; subcells * cut::CUT_BATCH];
         let mut voxel_fill = vec![0.0; per_voxel.pow(3)];
         let mut slots = vec![0usize; nloc * nloc];
-        let ndof = 3 * nloc;
-        let mut scaled = (vec![0.0; ndof * ndof], vec![0.0; ndof * ndof]);
+        let mut scaled = ElementBlocks::zeros(nloc);
         // A refined fill reads a one-voxel halo, which is then part of an element's input.
         let halo = per_voxel == crate::shape::refine::REFINED_PER_AXIS;
         if let Some(cache) = cache.as_deref_mut() {
@@ -159,20 +158,20 @@ impl FemModel {
                          keys: &[Vec<u8>]| {
             if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
                 let batch: Vec<&[f64]> = fills.chunks_exact(subcells).take(pending.len()).collect();
-                cut.matrices_batch(&batch, scratch, |j, ke, me| {
+                cut.matrices_batch(&batch, scratch, |j, blocks| {
                     let e = pending[j];
                     let nodes = &elements[e * nloc..(e + 1) * nloc];
-                    let (ke, me) = if block == 1 {
-                        (ke, me)
+                    let blocks = if block == 1 {
+                        blocks
                     } else {
-                        let (ks, ms) = &mut scaled;
-                        ks.iter_mut().zip(ke).for_each(|(s, v)| *s = v * k_scale);
-                        ms.iter_mut().zip(me).for_each(|(s, v)| *s = v * m_scale);
-                        (&ks[..], &ms[..])
+                        scaled.clone_from(blocks);
+                        scaled.scale(k_scale, m_scale);
+                        &scaled
                     };
-                    sparse::add_element(&pattern, nodes, ke, me, k, m, &mut slots);
+                    let (kb, mb) = (&blocks.k, &blocks.m);
+                    sparse::add_element_blocks(&pattern, nodes, kb, mb, k, m, &mut slots);
                     if let Some(cache) = cache.as_deref_mut() {
-                        cache.store(&keys[j], nloc, ke, me);
+                        cache.store(&keys[j], blocks);
                     }
                 });
             }
@@ -197,8 +196,16 @@ impl FemModel {
             };
             cell_fills.push(fingerprint);
             if full {
-                let (ke, me) = (&unit.stiffness[..], &unit.mass[..]);
-                sparse::add_element(&pattern, nodes, ke, me, &mut k, &mut m, &mut unit_slots);
+                let (kb, mb) = (&unit.k, &unit.m);
+                sparse::add_element_blocks(
+                    &pattern,
+                    nodes,
+                    kb,
+                    mb,
+                    &mut k,
+                    &mut m,
+                    &mut unit_slots,
+                );
                 continue;
             }
             if let Some(cache) = cache.as_deref_mut() {

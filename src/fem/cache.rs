@@ -21,6 +21,7 @@
 //! upper triangle of the stiffness as 3x3 node blocks and the mass as one scalar per node pair
 //! (a consistent mass is `M_ab delta_cd`): about 30 kB for a hex27x2 block.
 
+use super::sparse::ElementBlocks;
 use super::ElementKind;
 use crate::shape::{VoxelFill, VoxelGrid};
 use std::collections::HashMap;
@@ -34,7 +35,7 @@ pub const KEEP_ASSEMBLIES: u64 = 4;
 /// a 32^3 object's cut hex27x2 blocks take about 40 MB.
 pub const MAX_BYTES: usize = 64 << 20;
 
-/// One cut element's matrices, compactly.
+/// One cut element's matrices, compactly (an [`ElementBlocks`]'s).
 #[derive(Clone, Debug)]
 struct Entry {
     /// Stiffness 3x3 blocks (row-major) of the node pairs `a <= b`, row by row.
@@ -168,69 +169,15 @@ impl ElementCache {
         };
         entry.used = self.assembly;
         self.hits += 1;
-        super::sparse::find_slots(pattern, nodes, slots);
-        let n = nodes.len();
-        let mut pair = 0;
-        for i in 0..n {
-            for j in i..n {
-                let (b, s) = (&entry.k[pair], entry.m[pair]);
-                let upper = &mut k[slots[i * n + j]];
-                for (u, v) in upper.iter_mut().zip(b) {
-                    *u += v;
-                }
-                for c in 0..3 {
-                    m[slots[i * n + j]][4 * c] += s;
-                }
-                if j != i {
-                    let lower = &mut k[slots[j * n + i]];
-                    for c in 0..3 {
-                        for d in 0..3 {
-                            lower[3 * c + d] += b[3 * d + c];
-                        }
-                    }
-                    for c in 0..3 {
-                        m[slots[j * n + i]][4 * c] += s;
-                    }
-                }
-                pair += 1;
-            }
-        }
+        super::sparse::add_element_blocks(pattern, nodes, &entry.k, &entry.m, k, m, slots);
         true
     }
 
-    /// Stores an element's dense matrices (`3 n` square, row-major, DOFs node-major, as
-    /// [`super::sparse::add_element`] takes them) under `key`, unless the cache is full or the
-    /// mass is not `M_ab delta_cd` (then it is simply not kept).
-    pub(super) fn store(&mut self, key: &[u8], nodes: usize, ke: &[f64], me: &[f64]) {
-        let ndof = 3 * nodes;
-        debug_assert_eq!(ke.len(), ndof * ndof);
-        let pairs = nodes * (nodes + 1) / 2;
-        let mut k = Vec::with_capacity(pairs);
-        let mut m = Vec::with_capacity(pairs);
-        for i in 0..nodes {
-            for j in i..nodes {
-                let mut block = [0.0; 9];
-                for c in 0..3 {
-                    for d in 0..3 {
-                        let off = (3 * i + c) * ndof + 3 * j + d;
-                        block[3 * c + d] = ke[off];
-                        let want = if c == d {
-                            me[(3 * i) * ndof + 3 * j]
-                        } else {
-                            0.0
-                        };
-                        if me[off] != want {
-                            return;
-                        }
-                    }
-                }
-                k.push(block);
-                m.push(me[(3 * i) * ndof + 3 * j]);
-            }
-        }
+    /// Stores an element's matrices under `key`, unless the cache is full.
+    pub(super) fn store(&mut self, key: &[u8], blocks: &ElementBlocks) {
         let entry = Entry {
-            k: k.into_boxed_slice(),
-            m: m.into_boxed_slice(),
+            k: blocks.k.as_slice().into(),
+            m: blocks.m.as_slice().into(),
             used: self.assembly,
         };
         let bytes = entry.bytes(key.len());
@@ -274,9 +221,10 @@ mod tests {
     #[test]
     fn a_stroke_reuses_every_untouched_cut_element_and_assembles_the_same_model() {
         // The truth is the uncached assembly of the same grid. Reused matrices are the same
-        // numbers added in another order (the stored lower triangle is the transposed upper),
-        // so the models agree to rounding: 1e-13 of the largest entry (f64 eps is 2.2e-16;
-        // an element sums a few hundred sub-cell terms). A one-voxel stroke touches the
+        // numbers added in the same order (both scatter `ElementBlocks`), but a batch
+        // integrates its elements together and the batch boundaries move with the cache's
+        // hits, so the models agree to rounding: 1e-13 of the largest entry (f64 eps is
+        // 2.2e-16; an element sums a few hundred sub-cell terms). A one-voxel stroke touches the
         // elements whose key holds that voxel: at most 27 of them (the element and the
         // halo's), so nearly every other cut element must come from the cache.
         for kind in [

@@ -11,9 +11,10 @@
 //! positive definite when sub-cells are empty, as the finite cell method's `alpha` does.
 
 use super::element::{
-    condense_blocks, elasticity, integrate_box, BoxIntegrals, ElementKind, BUBBLE_DOFS,
-    BUBBLE_FULL, NODAL_DOFS,
+    bubble_solve, elasticity, integrate_box, BoxIntegrals, ElementKind, BUBBLE_DOFS, BUBBLE_FULL,
+    NODAL_DOFS,
 };
+use super::sparse::ElementBlocks;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
@@ -63,25 +64,30 @@ enum Integrals {
     Tensor(Box<tensor::Hex27Subcells>),
 }
 
-/// Every sub-cell's matrices, one column per sub-cell, packed: only the upper triangle of a
-/// symmetric matrix, and the mass as one scalar block (it is `M_ab delta_cd`), so the batch
-/// product does 2.3x less work than with whole matrices.
+/// Every sub-cell's matrices, one column per sub-cell, in the layout the scatter takes
+/// ([`ElementBlocks`]): the nodal stiffness as one 3x3 block per node pair `b >= a`, and the
+/// mass as one scalar per node pair (it is `m_ab delta_cd`). So the batch product writes the
+/// element's blocks directly (hex8), or the blocks and the bubble terms the condensation reads
+/// (hex8i), and nothing is unpacked.
 #[derive(Clone, Debug)]
 struct SubcellTable {
     /// Uncondensed stiffness of each sub-cell (x fastest) as the columns of one matrix: the
-    /// upper triangle, row by row, of the `dofs x dofs` matrix, then (hex8i) the Taylor sums.
+    /// nodal blocks (`9 node_pairs(n)` rows, [`ElementBlocks`] order), then for hex8i the
+    /// bubble rows `K_bu` (9 x 24, row-major), the bubble block `K_bb` (9 x 9) and the Taylor
+    /// correction's sums: `int B dV` of the 9 bubble DOFs and the 24 nodal DOFs (Voigt, 6
+    /// each) and the sub-cell's volume.
     stiffness: Mat<f64>,
-    /// Scalar mass of each sub-cell: the upper triangle of the `n x n` node block.
+    /// Scalar mass of each sub-cell, one row per node pair.
     mass: Mat<f64>,
-    /// Uncondensed DOFs, `3 (n + bubbles)`.
-    dofs: usize,
-    /// Rows of `stiffness` that are the packed stiffness; for hex8i the rest are, per
-    /// sub-cell, `int B dV` of the 9 bubble DOFs and the 24 nodal DOFs (Voigt, 6 each) and the
-    /// sub-cell's volume: the Taylor correction's sums.
-    kfull_len: usize,
     /// Elasticity matrix (E = 1).
     elasticity: [[f64; 6]; 6],
 }
+
+/// Rows of [`SubcellTable::stiffness`] past the nodal blocks (hex8i): `K_bu`, `K_bb`, the
+/// bubble strains, the nodal strains, the volume.
+const KBU_ROWS: usize = BUBBLE_DOFS * NODAL_DOFS;
+const KBB_ROWS: usize = BUBBLE_DOFS * BUBBLE_DOFS;
+const SUM_ROWS: usize = 6 * (BUBBLE_DOFS + NODAL_DOFS) + 1;
 
 /// Reusable buffers for [`CutElement::matrices_batch`].
 #[derive(Clone, Debug)]
@@ -92,11 +98,8 @@ pub struct CutScratch {
     kfull: Mat<f64>,
     /// Mass of the batch, one column per element.
     mass: Mat<f64>,
-    /// One element's unpacked uncondensed stiffness (linear elements).
-    unpacked: Vec<f64>,
-    /// One element's condensed stiffness, and its mass.
-    k: Vec<f64>,
-    m: Vec<f64>,
+    /// One element's matrices.
+    blocks: ElementBlocks,
     tensor: tensor::TensorScratch,
 }
 
@@ -121,11 +124,11 @@ impl SubcellTable {
     /// Integrates every sub-cell of `kind` (hex8, hex8i) over `per_axis^3` sub-cells.
     fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let step = 2.0 / per_axis as f64;
+        let nodes = kind.nodes();
+        let ndof = 3 * nodes;
+        let subcell_volume = (1.0 / per_axis as f64).powi(3);
         let mut stiffness: Vec<Vec<f64>> = Vec::new();
         let mut mass: Vec<Vec<f64>> = Vec::new();
-        let mut bubble_strain = Vec::new();
-        let mut nodal_strain = Vec::new();
-        let ndof = 3 * kind.nodes();
         for cz in 0..per_axis {
             for cy in 0..per_axis {
                 for cx in 0..per_axis {
@@ -135,52 +138,42 @@ impl SubcellTable {
                     let BoxIntegrals {
                         kfull,
                         mass: m,
-                        mut strain,
-                        ..
+                        strain,
                     } = integrate_box(kind, nu, lo, hi);
-                    let nall3 = (kfull.len() as f64).sqrt() as usize;
-                    stiffness.push(upper_triangle(&kfull, nall3, 1));
-                    mass.push(upper_triangle(&m, ndof, 3));
-                    if kind == ElementKind::Hex8Incompatible {
-                        bubble_strain.push(strain.split_off(ndof));
-                        nodal_strain.push(strain);
+                    let n = (kfull.len() as f64).sqrt() as usize;
+                    // The Gauss sums leave rounding asymmetry: read the upper triangle.
+                    let sym = |i: usize, j: usize| kfull[i.min(j) * n + i.max(j)];
+                    let mut column = Vec::new();
+                    for a in 0..nodes {
+                        for b in a..nodes {
+                            column.extend((0..9).map(|e| sym(3 * a + e / 3, 3 * b + e % 3)));
+                        }
                     }
+                    if kind == ElementKind::Hex8Incompatible {
+                        let bubbles = NODAL_DOFS..BUBBLE_FULL;
+                        for i in bubbles.clone() {
+                            column.extend((0..NODAL_DOFS).map(|j| sym(i, j)));
+                        }
+                        for i in bubbles.clone() {
+                            column.extend(bubbles.clone().map(|j| sym(i, j)));
+                        }
+                        column.extend(strain[ndof..].iter().flatten());
+                        column.extend(strain[..ndof].iter().flatten());
+                        column.push(subcell_volume);
+                    }
+                    stiffness.push(column);
+                    let blocks = ElementBlocks::from_dense(nodes, &vec![0.0; ndof * ndof], &m);
+                    mass.push(blocks.m);
                 }
             }
         }
-        // hex8i: the integrated strains and the volume ride along as extra rows of the
-        // stiffness table, so one product also gives the Taylor correction's sums.
-        let subcell_volume = (1.0 / per_axis as f64).powi(3);
-        for (c, k) in stiffness.iter_mut().enumerate() {
-            if kind == ElementKind::Hex8Incompatible {
-                k.extend(bubble_strain[c].iter().flatten());
-                k.extend(nodal_strain[c].iter().flatten());
-                k.push(subcell_volume);
-            }
-        }
         let table = |cols: &[Vec<f64>]| Mat::from_fn(cols[0].len(), cols.len(), |i, j| cols[j][i]);
-        let nall = if kind == ElementKind::Hex8Incompatible {
-            kind.nodes() + 3
-        } else {
-            kind.nodes()
-        };
-        let dofs = 3 * nall;
         Self {
             stiffness: table(&stiffness),
             mass: table(&mass),
-            dofs,
-            kfull_len: dofs * (dofs + 1) / 2,
             elasticity: elasticity(nu),
         }
     }
-}
-
-/// The upper triangle (row by row) of the `n x n` row-major `a`, every `step`-th row and column.
-fn upper_triangle(a: &[f64], n: usize, step: usize) -> Vec<f64> {
-    (0..n)
-        .step_by(step)
-        .flat_map(|i| (i..n).step_by(step).map(move |j| a[i * n + j]))
-        .collect()
 }
 
 impl CutElement {
@@ -191,7 +184,6 @@ impl CutElement {
 
     /// Buffers for [`CutElement::matrices_batch`].
     pub fn scratch(&self) -> CutScratch {
-        let ndof = 3 * self.kind.nodes();
         let (table_rows, mass_rows, subcells, batch) = match &self.integrals {
             Integrals::Table(t) => (
                 t.stiffness.nrows(),
@@ -205,12 +197,7 @@ impl CutElement {
             weights: Mat::zeros(subcells, batch),
             kfull: Mat::zeros(table_rows, batch),
             mass: Mat::zeros(mass_rows, batch),
-            unpacked: match &self.integrals {
-                Integrals::Table(t) => vec![0.0; t.dofs * t.dofs],
-                Integrals::Tensor(_) => Vec::new(),
-            },
-            k: vec![0.0; ndof * ndof],
-            m: vec![0.0; ndof * ndof],
+            blocks: ElementBlocks::zeros(self.kind.nodes()),
             tensor: match &self.integrals {
                 Integrals::Table(_) => tensor::TensorScratch::default(),
                 Integrals::Tensor(t) => t.scratch(),
@@ -219,21 +206,21 @@ impl CutElement {
     }
 
     /// The element matrices of up to [`CUT_BATCH`] partial voxels whose sub-cells (x fastest)
-    /// are filled to the fractions `fills[j]` (each in `[0, 1]`): calls `each(j, k, m)` with
-    /// `3 n` square row-major matrices, like [`super::UnitElement`]'s.
+    /// are filled to the fractions `fills[j]` (each in `[0, 1]`): calls `each(j, blocks)`
+    /// with each element's matrices, like the unit element's ([`ElementBlocks`]).
     pub fn matrices_batch(
         &self,
         fills: &[&[f64]],
         scratch: &mut CutScratch,
-        mut each: impl FnMut(usize, &[f64], &[f64]),
+        mut each: impl FnMut(usize, &ElementBlocks),
     ) {
         let count = fills.len();
         assert!(count <= CUT_BATCH, "at most CUT_BATCH elements per batch");
         let table = match &self.integrals {
             Integrals::Tensor(tensor) => {
                 for (j, fill) in fills.iter().enumerate() {
-                    tensor.matrices(fill, &mut scratch.k, &mut scratch.m, &mut scratch.tensor);
-                    each(j, &scratch.k, &scratch.m);
+                    tensor.matrices(fill, &mut scratch.blocks, &mut scratch.tensor);
+                    each(j, &scratch.blocks);
                 }
                 return;
             }
@@ -268,11 +255,11 @@ impl CutElement {
             unsafe { self.finish_batch_avx2(table, count, scratch, &mut each) };
             return;
         }
-        self.finish_batch(table, count, scratch, &mut each);
+        self.finish_batch::<false>(table, count, scratch, &mut each);
     }
 
-    /// [`CutElement::finish_batch`] compiled for AVX2: the Taylor correction and the
-    /// condensation run on 24-wide rows, 4 lanes at a time.
+    /// [`CutElement::finish_batch`] compiled for AVX2 and FMA: the Taylor correction and the
+    /// condensation run on 24-wide rows, 4 lanes at a time, with fused multiply-adds.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn finish_batch_avx2(
@@ -280,101 +267,161 @@ impl CutElement {
         table: &SubcellTable,
         count: usize,
         scratch: &mut CutScratch,
-        each: &mut impl FnMut(usize, &[f64], &[f64]),
+        each: &mut impl FnMut(usize, &ElementBlocks),
     ) {
-        self.finish_batch(table, count, scratch, each);
+        self.finish_batch::<true>(table, count, scratch, each);
     }
 
-    /// The Taylor correction (hex8i) and the condensation of each summed element of a batch.
+    /// The Taylor correction and the condensation (hex8i) of each summed element of a batch;
+    /// `FMA`: with fused multiply-adds (only where the CPU has them: otherwise they are a
+    /// library call).
     #[inline(always)]
-    fn finish_batch(
+    fn finish_batch<const FMA: bool>(
         &self,
         table: &SubcellTable,
         count: usize,
         scratch: &mut CutScratch,
-        each: &mut impl FnMut(usize, &[f64], &[f64]),
+        each: &mut impl FnMut(usize, &ElementBlocks),
     ) {
-        let n = table.dofs;
-        let (nodes, ndof) = (self.kind.nodes(), 3 * self.kind.nodes());
+        let blocks = &mut scratch.blocks;
+        let block_rows = 9 * blocks.k.len();
         for j in 0..count {
-            let (packed, sums) = scratch.kfull.col_as_slice(j).split_at(table.kfull_len);
-            // Unpack the stiffness (symmetric) and the mass (`M_ab delta_cd`).
-            let kfull = &mut scratch.unpacked[..n * n];
-            let mut at = 0;
-            for r in 0..n {
-                let row = &packed[at..at + n - r];
-                kfull[r * n + r..(r + 1) * n].copy_from_slice(row);
-                for (c, &v) in row.iter().enumerate().skip(1) {
-                    kfull[(r + c) * n + r] = v;
-                }
-                at += n - r;
-            }
-            let (mut at, mass) = (0, scratch.mass.col_as_slice(j));
-            for a in 0..nodes {
-                for b in a..nodes {
-                    for c in 0..3 {
-                        scratch.m[(3 * a + c) * ndof + 3 * b + c] = mass[at];
-                        scratch.m[(3 * b + c) * ndof + 3 * a + c] = mass[at];
-                    }
-                    at += 1;
-                }
-            }
+            let (kuu, bubbles) = scratch.kfull.col_as_slice(j).split_at(block_rows);
+            blocks.m.copy_from_slice(scratch.mass.col_as_slice(j));
             if self.kind == ElementKind::Hex8Incompatible {
-                let k: &mut [f64; 24 * 24] = (&mut scratch.k[..]).try_into().expect("24 x 24");
-                condense_corrected(&table.elasticity, kfull, sums, k);
+                let k: &mut [[f64; 9]; 36] = (&mut blocks.k[..]).try_into().expect("36 pairs");
+                condense_corrected::<FMA>(&table.elasticity, kuu, bubbles, k);
             } else {
-                scratch.k.copy_from_slice(kfull);
+                for (out, v) in blocks.k.iter_mut().zip(kuu.chunks_exact(9)) {
+                    out.copy_from_slice(v);
+                }
             }
-            each(j, &scratch.k, &scratch.m);
+            symmetrise_diagonal(&mut blocks.k, self.kind.nodes());
+            each(j, blocks);
         }
     }
 
-    /// The element matrices of one partial voxel (see [`CutElement::matrices_batch`]).
+    /// The element matrices of one partial voxel (see [`CutElement::matrices_batch`]), dense
+    /// (`3 n` square, row-major, DOFs node-major).
     pub fn matrices(&self, fill: &[f64], k: &mut [f64], m: &mut [f64], scratch: &mut CutScratch) {
-        self.matrices_batch(&[fill], scratch, |_, ke, me| {
-            k.copy_from_slice(ke);
-            m.copy_from_slice(me);
-        });
+        let nodes = self.kind.nodes();
+        self.matrices_batch(&[fill], scratch, |_, blocks| blocks.to_dense(nodes, k, m));
     }
 }
 
-/// The condensed stiffness of a cut hex8i element from its fill-weighted uncondensed
-/// stiffness `kfull` (33 x 33) and the Taylor sums, with the incompatible modes' strains made
-/// to average to zero over the filled part of the cell (Taylor, Beresford and Wilson 1976):
+/// Makes the diagonal blocks of an element's stiffness blocks exactly symmetric (they are
+/// sums of the same numbers in each triangle; this rules out rounding that a product kernel
+/// might order differently).
+#[inline(always)]
+fn symmetrise_diagonal(k: &mut [[f64; 9]], nodes: usize) {
+    let mut pair = 0;
+    for a in 0..nodes {
+        let b = &mut k[pair];
+        for (i, j) in [(1, 3), (2, 6), (5, 7)] {
+            let v = 0.5 * (b[i] + b[j]);
+            (b[i], b[j]) = (v, v);
+        }
+        pair += nodes - a;
+    }
+}
+
+/// The condensed stiffness blocks of a cut hex8i element from its fill-weighted nodal blocks
+/// `kuu` ([`ElementBlocks`] order) and the `bubbles` rows of [`SubcellTable::stiffness`]
+/// (`K_bu`, `K_bb` and the Taylor sums), with the incompatible modes' strains made to average
+/// to zero over the filled part of the cell (Taylor, Beresford and Wilson 1976):
 /// `B_b -> B_b - G`, `G = int_f B_b dV / V_f`. On a full cube the bubbles' strains already
 /// average to zero (`G = 0`); on a cut cell they do not, and the uncorrected element fails the
 /// constant-strain patch test and locks.
 ///
-/// `sums` holds the fill-weighted `int_f B_b dV` (9 x 6), `S_u = int_f B_u dV` (24 x 6) and
+/// The sums are the fill-weighted `int_f B_b dV` (9 x 6), `S_u = int_f B_u dV` (24 x 6) and
 /// `V_f`; with `int_f B_b dV = V_f G`: `K_bu -= G^T D S_u` (and `K_ub` likewise, which the
 /// condensation reads as `K_bu^T`), `K_bb -= V_f G^T D G`.
 #[inline(always)]
-fn condense_corrected(d: &[[f64; 6]; 6], kfull: &[f64], sums: &[f64], k: &mut [f64; 24 * 24]) {
+fn condense_corrected<const FMA: bool>(
+    d: &[[f64; 6]; 6],
+    kuu: &[f64],
+    bubbles: &[f64],
+    k: &mut [[f64; 9]; 36],
+) {
     const NB: usize = BUBBLE_DOFS;
     const NU: usize = NODAL_DOFS;
-    const FULL: usize = BUBBLE_FULL;
+    let (kbu_rows, rest) = bubbles.split_at(KBU_ROWS);
+    let (kbb_rows, sums) = rest.split_at(KBB_ROWS);
+    debug_assert_eq!(sums.len(), SUM_ROWS);
     let volume = sums[6 * (NB + NU)];
-    let g: [[f64; 6]; NB] =
-        std::array::from_fn(|j| std::array::from_fn(|r| sums[6 * j + r] / volume));
+    let mut g = [[0.0f64; 6]; NB];
+    for (gj, s) in g.iter_mut().zip(sums.chunks_exact(6)) {
+        gj.iter_mut().zip(s).for_each(|(g, s)| *g = s / volume);
+    }
     // D G_j once per bubble DOF; S_u transposed to 6 rows of 24 for row operations.
-    let dg: [[f64; 6]; NB] =
-        g.map(|gj| std::array::from_fn(|r| (0..6).map(|s| d[r][s] * gj[s]).sum()));
-    let su_t: [[f64; NU]; 6] =
-        std::array::from_fn(|r| std::array::from_fn(|i| sums[6 * (NB + i) + r]));
-    let mut kbu: [[f64; NU]; NB] =
-        std::array::from_fn(|j| std::array::from_fn(|i| kfull[(NU + j) * FULL + i]));
-    for (row, dgj) in kbu.iter_mut().zip(&dg) {
-        for (su, &c) in su_t.iter().zip(dgj) {
-            row.iter_mut().zip(su).for_each(|(r, s)| *r -= c * s);
+    let mut dg = [[0.0f64; 6]; NB];
+    for (dgj, gj) in dg.iter_mut().zip(&g) {
+        for (r, out) in dgj.iter_mut().enumerate() {
+            *out = (0..6).map(|s| d[r][s] * gj[s]).sum();
         }
     }
-    let kbb: [[f64; NB]; NB] = std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
+    let mut su_t = [[0.0f64; NU]; 6];
+    for (i, s) in sums[6 * NB..6 * (NB + NU)].chunks_exact(6).enumerate() {
+        for (r, &v) in s.iter().enumerate() {
+            su_t[r][i] = v;
+        }
+    }
+    let mut kbu = [[0.0f64; NU]; NB];
+    for ((row, src), dgj) in kbu.iter_mut().zip(kbu_rows.chunks_exact(NU)).zip(&dg) {
+        row.copy_from_slice(src);
+        for (su, &c) in su_t.iter().zip(dgj) {
+            row.iter_mut()
+                .zip(su)
+                .for_each(|(r, s)| *r = mul_add::<FMA>(-c, *s, *r));
+        }
+    }
+    let mut kbb = [[0.0f64; NB]; NB];
+    for (i, (row, src)) in kbb.iter_mut().zip(kbb_rows.chunks_exact(NB)).enumerate() {
+        for (j, (out, &v)) in row.iter_mut().zip(src).enumerate() {
             let gdg: f64 = (0..6).map(|r| g[i][r] * dg[j][r]).sum();
-            kfull[(NU + i) * FULL + NU + j] - volume * gdg
-        })
-    });
-    condense_blocks(kfull, FULL, &kbb, &kbu, k);
+            *out = v - volume * gdg;
+        }
+    }
+    // K = K_uu - Y^T Y on the blocks b >= a: row 3a + c of the correction in 4-wide chunks
+    // from the one holding column 3a.
+    let y = bubble_solve(&kbb, &kbu);
+    let mut first_pair = 0;
+    for a in 0..8 {
+        let from = 3 * a / 4;
+        for c in 0..3 {
+            let i = 3 * a + c;
+            let mut corr = [[0.0f64; 4]; NU / 4];
+            for (chunk, o) in corr.iter_mut().enumerate().skip(from) {
+                // One chunk's sum over the 9 rows of Y stays in a register.
+                let mut acc = [0.0f64; 4];
+                for yp in &y {
+                    let s = yp[i];
+                    let v = &yp[4 * chunk..4 * chunk + 4];
+                    for (acc, v) in acc.iter_mut().zip(v) {
+                        *acc = mul_add::<FMA>(s, *v, *acc);
+                    }
+                }
+                *o = acc;
+            }
+            let corr = corr.as_flattened();
+            for (pair, b) in (first_pair..).zip(a..8) {
+                for e in 0..3 {
+                    k[pair][3 * c + e] = kuu[9 * pair + 3 * c + e] - corr[3 * b + e];
+                }
+            }
+        }
+        first_pair += 8 - a;
+    }
+}
+
+/// `a b + c`, fused where `FMA` (see [`CutElement::finish_batch`]).
+#[inline(always)]
+fn mul_add<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
 }
 
 #[cfg(test)]

@@ -236,7 +236,9 @@ pub(crate) fn integrate_box(
                 }
                 for a in 0..nn {
                     for b in 0..nn {
-                        let v = w * val[a] * val[b];
+                        // `val[a] * val[b]` first: the same product for (a, b) and (b, a), so
+                        // the mass is symmetric bit for bit.
+                        let v = w * (val[a] * val[b]);
                         for c in 0..3 {
                             m[(3 * a + c) * ndof + 3 * b + c] += v;
                         }
@@ -310,11 +312,9 @@ pub(crate) fn condense_bubbles(kfull: &[f64; BUBBLE_FULL * BUBBLE_FULL], k: &mut
     condense_blocks(kfull, FULL, &kbb, &kbu, k);
 }
 
-/// `K = Kuu - Kub Kbb^-1 Kbu`, as `Kuu - Y^T Y` with `Y = L^-1 Kbu` and `Kbb = L L^T`
-/// (Cholesky of the 9 x 9 bubble block): one triangular solve instead of two, and the
-/// correction is symmetric bit for bit, so `K` is exactly symmetric where `Kuu` is. `kuu` is
-/// read as the leading 24 x 24 block of a row-major matrix with `stride` columns. Inlined so
-/// that callers compiled for wider vectors ([`super::cut`]) vectorise it with them.
+/// `K = Kuu - Kub Kbb^-1 Kbu`, as `Kuu - Y^T Y` ([`bubble_solve`]). `kuu` is read as the
+/// leading 24 x 24 block of a row-major matrix with `stride` columns. Inlined so that callers
+/// compiled for wider vectors vectorise it with them.
 #[inline(always)]
 pub(crate) fn condense_blocks(
     kuu: &[f64],
@@ -323,6 +323,31 @@ pub(crate) fn condense_blocks(
     kbu: &[[f64; NODAL_DOFS]; BUBBLE_DOFS],
     k: &mut [f64; NODAL_DOFS * NODAL_DOFS],
 ) {
+    const NU: usize = NODAL_DOFS;
+    let y = bubble_solve(kbb, kbu);
+    for i in 0..NU {
+        let mut corr = [0.0f64; NU];
+        for yp in &y {
+            let a = yp[i];
+            corr.iter_mut().zip(yp).for_each(|(c, y)| *c += a * y);
+        }
+        let out = &mut k[i * NU..(i + 1) * NU];
+        let kuu = &kuu[i * stride..i * stride + NU];
+        for ((o, kv), c) in out.iter_mut().zip(kuu).zip(corr) {
+            *o = kv - c;
+        }
+    }
+}
+
+/// `Y = L^-1 Kbu` with `Kbb = L L^T` (Cholesky of hex8i's 9 x 9 bubble block): the static
+/// condensation's correction `Kub Kbb^-1 Kbu` is `Y^T Y`, one triangular solve instead of two,
+/// and symmetric bit for bit. Inlined so that callers compiled for wider vectors
+/// ([`super::cut`]) vectorise it with them.
+#[inline(always)]
+pub(crate) fn bubble_solve(
+    kbb: &[[f64; BUBBLE_DOFS]; BUBBLE_DOFS],
+    kbu: &[[f64; NODAL_DOFS]; BUBBLE_DOFS],
+) -> [[f64; NODAL_DOFS]; BUBBLE_DOFS] {
     const NU: usize = NODAL_DOFS;
     const NB: usize = BUBBLE_DOFS;
     let mut l = [[0.0f64; NB]; NB];
@@ -347,18 +372,7 @@ pub(crate) fn condense_blocks(
         row.iter_mut().for_each(|r| *r *= inv);
         y[i] = row;
     }
-    for i in 0..NU {
-        let mut corr = [0.0f64; NU];
-        for yp in &y {
-            let a = yp[i];
-            corr.iter_mut().zip(yp).for_each(|(c, y)| *c += a * y);
-        }
-        let out = &mut k[i * NU..(i + 1) * NU];
-        let kuu = &kuu[i * stride..i * stride + NU];
-        for ((o, kv), c) in out.iter_mut().zip(kuu).zip(corr) {
-            *o = kv - c;
-        }
-    }
+    y
 }
 
 impl UnitElement {
@@ -408,6 +422,27 @@ mod tests {
         (0..e.kind.nodes())
             .flat_map(|a| f(e.node_position(a)))
             .collect()
+    }
+
+    #[test]
+    fn unit_elements_are_symmetric_and_their_mass_is_scalar_blocks_bit_for_bit() {
+        // The assembly scatters an element's upper node blocks and mirrors them
+        // (`sparse::ElementBlocks`), and the eigensolvers' mass product reads one number per
+        // block (`sparse::is_scalar_blocks`): both need these identities exactly, not to
+        // rounding.
+        for kind in ElementKind::ALL {
+            let e = UnitElement::new(kind, 0.3);
+            let n = e.dofs();
+            for i in 0..n {
+                for j in 0..n {
+                    assert_eq!(e.stiffness[i * n + j], e.stiffness[j * n + i], "{kind:?}");
+                    assert_eq!(e.mass[i * n + j], e.mass[j * n + i], "{kind:?}");
+                    let scalar = e.mass[(i / 3 * 3) * n + j / 3 * 3];
+                    let want = if i % 3 == j % 3 { scalar } else { 0.0 };
+                    assert_eq!(e.mass[i * n + j], want, "{kind:?}");
+                }
+            }
+        }
     }
 
     #[test]

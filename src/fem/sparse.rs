@@ -7,8 +7,12 @@
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 mod mass;
+mod scatter;
 mod spmm;
 pub use mass::{is_scalar_blocks, spmm_scalar};
+pub use scatter::{
+    add_element, add_element_blocks, add_elements, find_slots, node_pairs, ElementBlocks,
+};
 pub use spmm::{spmm, Scalar};
 
 /// Sparsity of a node-blocked matrix: CSR over nodes, columns sorted.
@@ -60,65 +64,6 @@ impl BlockPattern {
 
 /// Values of a symmetric node-blocked matrix on a shared pattern: block `b` is row-major 3x3.
 pub type Blocks = Vec<[f64; 9]>;
-
-/// Adds element matrices into `k` and `m` (both on `pattern`). Element `e` has the nodes
-/// `elements[e * nloc..(e + 1) * nloc]` and the dense matrices `matrices(e)`: `3 nloc` square,
-/// row-major, DOFs node-major (`3 a + c`).
-pub fn add_elements<'a>(
-    pattern: &BlockPattern,
-    elements: &[u32],
-    nloc: usize,
-    matrices: impl Fn(usize) -> (&'a [f64], &'a [f64]),
-    k: &mut [[f64; 9]],
-    m: &mut [[f64; 9]],
-) {
-    let mut slots = vec![0usize; nloc * nloc];
-    for (index, e) in elements.chunks_exact(nloc).enumerate() {
-        let (ke, me) = matrices(index);
-        add_element(pattern, e, ke, me, k, m, &mut slots);
-    }
-}
-
-/// Adds one element's matrices `ke`, `me` (`3 nodes.len()` square, row-major, DOFs node-major)
-/// into `k` and `m`; `slots` is scratch of `nodes.len()^2` entries.
-pub fn add_element(
-    pattern: &BlockPattern,
-    nodes: &[u32],
-    ke: &[f64],
-    me: &[f64],
-    k: &mut [[f64; 9]],
-    m: &mut [[f64; 9]],
-    slots: &mut [usize],
-) {
-    let nloc = nodes.len();
-    let ndof = 3 * nloc;
-    find_slots(pattern, nodes, slots);
-    for i in 0..nloc {
-        for j in 0..nloc {
-            let s = slots[i * nloc + j];
-            for c in 0..3 {
-                for d in 0..3 {
-                    let off = (3 * i + c) * ndof + 3 * j + d;
-                    k[s][3 * c + d] += ke[off];
-                    m[s][3 * c + d] += me[off];
-                }
-            }
-        }
-    }
-}
-
-/// The block of every node pair of an element on `pattern`, into `slots` (`slots[i n + j]` for
-/// the pair `(nodes[i], nodes[j])`).
-pub fn find_slots(pattern: &BlockPattern, nodes: &[u32], slots: &mut [usize]) {
-    let n = nodes.len();
-    for (i, &a) in nodes.iter().enumerate() {
-        for (j, &b) in nodes.iter().enumerate() {
-            slots[i * n + j] = pattern
-                .find(a as usize, b)
-                .expect("pattern holds every element pair");
-        }
-    }
-}
 
 /// `y = A x` for a node-blocked matrix.
 pub fn spmv(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64]) {

@@ -56,13 +56,22 @@ impl SubFill {
             .expect("at most SUBCELLS sub-cells");
         assert_eq!(per_axis.pow(3), out.len(), "a cube number of sub-cells");
         let r = n / per_axis;
-        out.fill(0.0);
-        for (i, &f) in self.0.iter().enumerate() {
-            let c = [i % n, (i / n) % n, i / (n * n)].map(|c| c / r);
-            out[c[0] + per_axis * (c[1] + per_axis * c[2])] += f as f64;
+        // Integer sums (exact), then one scaling per coarse sub-cell.
+        let coarse: [usize; SUBCELLS_PER_AXIS] = std::array::from_fn(|i| i / r);
+        let mut sums = [0u32; SUBCELLS];
+        let mut fine = self.0.iter();
+        for &z in &coarse {
+            for &y in &coarse {
+                let row = per_axis * (y + per_axis * z);
+                for (&x, &f) in coarse.iter().zip(fine.by_ref()) {
+                    sums[row + x] += f as u32;
+                }
+            }
         }
         let norm = (FULL as usize * r * r * r) as f64;
-        out.iter_mut().for_each(|f| *f /= norm);
+        for (o, &s) in out.iter_mut().zip(&sums) {
+            *o = s as f64 / norm;
+        }
     }
 
     /// Every sub-cell's fraction in `[0, 1]`.

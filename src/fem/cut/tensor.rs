@@ -33,6 +33,7 @@
 
 use super::EMPTY_SUBCELL_FLOOR;
 use crate::fem::element::{basis_1d, gauss};
+use crate::fem::sparse::{node_pairs, ElementBlocks};
 
 /// Lagrange factors per axis (hex27: nodes at `xi = -1, 0, 1`).
 const M: usize = 3;
@@ -40,9 +41,8 @@ const M: usize = 3;
 const P: usize = M * M;
 /// Legendre polynomials per axis: a product of two 1D factors has degree 4 at most.
 const L: usize = 5;
-/// Nodes of the element and DOFs.
+/// Nodes of the element.
 const NODES: usize = M * M * M;
-const NDOF: usize = 3 * NODES;
 
 /// Where the integral of nodes `a` and `b` sits in a flattened `[pair_z][pair_y][pair_x]`
 /// tensor (node `a = ax + 3 (ay + 3 az)`).
@@ -179,30 +179,24 @@ impl Hex27Subcells {
         }
     }
 
-    /// Stiffness `k` and mass `m` (`81 x 81`, row-major, DOF `3 a + c`) of a hex27 element whose
-    /// sub-cells (x fastest) are filled to `fill`, each clamped to `[EMPTY_SUBCELL_FLOOR, 1]`.
-    pub fn matrices(
-        &self,
-        fill: &[f64],
-        k: &mut [f64],
-        m: &mut [f64],
-        scratch: &mut TensorScratch,
-    ) {
+    /// Stiffness and mass ([`ElementBlocks`] of 27 nodes) of a hex27 element whose sub-cells
+    /// (x fastest) are filled to `fill`, each clamped to `[EMPTY_SUBCELL_FLOOR, 1]`.
+    pub fn matrices(&self, fill: &[f64], out: &mut ElementBlocks, scratch: &mut TensorScratch) {
         let s = self.per_axis;
         assert_eq!(fill.len(), s * s * s, "one fraction per sub-cell");
         assert!(
-            k.len() == NDOF * NDOF && m.len() == NDOF * NDOF,
-            "81 x 81 outputs"
+            out.k.len() == node_pairs(NODES) && out.m.len() == node_pairs(NODES),
+            "27-node blocks"
         );
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the CPU supports AVX2 and FMA (checked just above), the only requirement
             // of the `target_feature` function; it is the same safe code compiled for them.
-            unsafe { self.matrices_avx2(fill, k, m, scratch) };
+            unsafe { self.matrices_avx2(fill, out, scratch) };
             return;
         }
-        self.matrices_body(fill, k, m, scratch);
+        self.matrices_body(fill, out, scratch);
     }
 
     /// [`Hex27Subcells::matrices`] compiled for AVX2 (4 lanes instead of SSE2's 2).
@@ -211,21 +205,14 @@ impl Hex27Subcells {
     unsafe fn matrices_avx2(
         &self,
         fill: &[f64],
-        k: &mut [f64],
-        m: &mut [f64],
+        out: &mut ElementBlocks,
         scratch: &mut TensorScratch,
     ) {
-        self.matrices_body(fill, k, m, scratch);
+        self.matrices_body(fill, out, scratch);
     }
 
     #[inline(always)]
-    fn matrices_body(
-        &self,
-        fill: &[f64],
-        k: &mut [f64],
-        m: &mut [f64],
-        scratch: &mut TensorScratch,
-    ) {
+    fn matrices_body(&self, fill: &[f64], out: &mut ElementBlocks, scratch: &mut TensorScratch) {
         let s = self.per_axis;
         for (w, f) in scratch.weights.iter_mut().zip(fill) {
             *w = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
@@ -316,13 +303,13 @@ impl Hex27Subcells {
             flat.try_into().expect("729 entries")
         });
         let (lambda, mu) = (self.lambda, self.mu);
+        let mut pair = 0;
         for a in 0..NODES {
-            for b in 0..NODES {
+            for b in a..NODES {
                 let (ab, ba) = self.pairs[a * NODES + b];
                 let (ab, ba) = (ab as usize, ba as usize);
                 let diag = [ints[0][ab], ints[1][ab], ints[2][ab]];
                 let trace = diag[0] + diag[1] + diag[2];
-                let mass = ints[6][ab];
                 // I^{cd}(a, b) for c < d is stored; I^{dc}(a, b) = I^{cd}(b, a).
                 let upper = [ints[3][ab], ints[4][ab], ints[5][ab]]; // xy, yz, xz
                 let lower = [ints[3][ba], ints[4][ba], ints[5][ba]]; // yx, zy, zx
@@ -337,17 +324,18 @@ impl Hex27Subcells {
                         _ => diag[c],
                     }
                 };
+                let block = &mut out.k[pair];
                 for c in 0..3 {
-                    let row = (3 * a + c) * NDOF + 3 * b;
                     for d in 0..3 {
                         let mut v = lambda * i(c, d) + mu * i(d, c);
                         if c == d {
                             v += mu * trace;
                         }
-                        k[row + d] = v;
-                        m[row + d] = if c == d { mass } else { 0.0 };
+                        block[3 * c + d] = v;
                     }
                 }
+                out.m[pair] = ints[6][ab];
+                pair += 1;
             }
         }
     }
