@@ -12,10 +12,12 @@
 //! `-- --quick` for the two bowls, `-- --hex8i` without hex27; `-- --assembly [ELEMENT]`
 //! times assembly alone on the two bowls, partial voxels against the staircase of the same
 //! bowl (issue 19's "assembly within 2x"), for ELEMENT or all three; `--repeat N` repeats each
-//! measurement N times, staircase and partial alternately, and keeps the fastest. The times
-//! include the page faults of the matrices' fresh memory, which the allocator hands out
-//! differently from run to run (on a 2-core VM the staircase's 16-voxel hex8i assembly took
-//! 1.3-5.6 ms by that alone): compare medians of several runs.
+//! measurement N times, staircase and partial alternately, and keeps the fastest. `--assembly`
+//! first tells glibc's allocator to keep freed memory (`mallopt`): otherwise whether an
+//! assembly's matrices land in recycled memory or in fresh pages (a page fault per 4 kB) is
+//! the allocator's luck, which moved the staircase's 16-voxel hex8i assembly between 1.0 and
+//! 6.3 ms on a 2-core VM. Kept memory is also what a long-running worker re-assembling
+//! after every edit gets; what remains is the work itself, zeroing the matrices included.
 
 #[path = "../tests/common/smooth.rs"]
 mod smooth;
@@ -48,6 +50,7 @@ fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let only_hex8i = std::env::args().any(|a| a == "--hex8i");
     if std::env::args().any(|a| a == "--assembly") {
+        keep_freed_memory();
         assembly_ratios();
         return;
     }
@@ -101,6 +104,18 @@ fn main() {
                 );
             }
         }
+    }
+}
+
+/// Makes glibc keep freed memory for reuse: no allocation is served by a fresh `mmap` and the
+/// heap is never trimmed, so every assembly after the first works in recycled memory.
+fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `mallopt` only changes the allocator's thresholds; it is called before any
+    // other thread exists (faer is sequential here), as glibc asks.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 30);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 30);
     }
 }
 
