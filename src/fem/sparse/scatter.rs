@@ -84,7 +84,7 @@ pub const fn node_pairs(nodes: usize) -> usize {
 
 /// One element's matrices as the assembly scatters them: for every node pair `(a, b)` with
 /// `b >= a`, row by row (`(0, 0), (0, 1), .., (1, 1), ..`), the 3x3 stiffness block
-/// `K(3a + c, 3b + d)` (row-major) and the scalar mass `m_ab`: the mass of every element kind
+/// `K(3a + c, 3b + d)` (row-major; symmetric where `a = b`) and the scalar mass `m_ab`: the mass of every element kind
 /// is `M(3a + c, 3b + d) = m_ab delta_cd` (the same shape functions for the three components).
 /// Half the dense matrices, and three numbers of every mass block instead of nine.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -139,7 +139,8 @@ impl ElementBlocks {
             for b in a..nodes {
                 let (blk, s) = (&self.k[pair], self.m[pair]);
                 for c in 0..3 {
-                    for d in 0..3 {
+                    // A diagonal block's upper triangle (the blocks are symmetric there).
+                    for d in if a == b { c..3 } else { 0..3 } {
                         ke[(3 * a + c) * ndof + 3 * b + d] = blk[3 * c + d];
                         ke[(3 * b + d) * ndof + 3 * a + c] = blk[3 * c + d];
                     }
