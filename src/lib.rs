@@ -70,6 +70,7 @@ pub mod demo;
 pub mod eigen;
 pub mod engine;
 pub mod fem;
+pub(crate) mod fma;
 pub mod limits;
 pub mod material;
 pub mod modes;

@@ -15,6 +15,7 @@ use super::element::{
     NODAL_DOFS,
 };
 use super::sparse::ElementBlocks;
+use crate::fma::mul_add;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
@@ -372,7 +373,7 @@ fn condense_corrected<const FMA: bool>(
         for (su, &c) in su_t.iter().zip(dgj) {
             row.iter_mut()
                 .zip(su)
-                .for_each(|(r, s)| *r = mul_add::<FMA>(-c, *s, *r));
+                .for_each(|(r, s)| *r = mul_add::<FMA, _>(-c, *s, *r));
         }
     }
     let mut kbb = [[0.0f64; NB]; NB];
@@ -398,7 +399,7 @@ fn condense_corrected<const FMA: bool>(
                     let s = yp[i];
                     let v = &yp[4 * chunk..4 * chunk + 4];
                     for (acc, v) in acc.iter_mut().zip(v) {
-                        *acc = mul_add::<FMA>(s, *v, *acc);
+                        *acc = mul_add::<FMA, _>(s, *v, *acc);
                     }
                 }
                 *o = acc;
@@ -411,16 +412,6 @@ fn condense_corrected<const FMA: bool>(
             }
         }
         first_pair += 8 - a;
-    }
-}
-
-/// `a b + c`, fused where `FMA` (see [`CutElement::finish_batch`]).
-#[inline(always)]
-fn mul_add<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
     }
 }
 

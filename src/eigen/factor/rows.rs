@@ -15,6 +15,8 @@
 //! four factor entries). Kernels are compiled for AVX2 + FMA and picked at run time, with a
 //! portable build of the same code as the fallback.
 
+use crate::fma::mul_add;
+
 /// The supernodal structure of a factor, copied from faer's symbolic factorisation and checked
 /// once, so the kernels can index without bounds checks.
 pub(super) struct SupernodalRows {
@@ -138,17 +140,6 @@ unsafe fn solve_avx2<const W: usize>(f: &SupernodalRows, values: &[f64], x: &mut
     backward::<W, true>(f, values, x);
 }
 
-/// `a * b + c`, fused where the kernel was compiled for FMA (a software `mul_add` elsewhere
-/// would be slow).
-#[inline(always)]
-fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
-}
-
 /// The below-diagonal parts (`nc..ld`) of supernode columns `c..c + 4`, from a supernode's
 /// column-major values `l` (`ld` rows, `nc` of them in the diagonal block).
 #[inline(always)]
@@ -160,7 +151,7 @@ fn below_four(l: &[f64], c: usize, nc: usize, ld: usize) -> [&[f64]; 4] {
 #[inline(always)]
 fn sub_scaled<const W: usize, const FMA: bool>(y: &mut [f64; W], a: f64, x: &[f64; W]) {
     for j in 0..W {
-        y[j] = madd::<FMA>(-a, x[j], y[j]);
+        y[j] = mul_add::<FMA, _>(-a, x[j], y[j]);
     }
 }
 
@@ -209,10 +200,10 @@ fn forward<const W: usize, const FMA: bool>(
                 };
                 for j in 0..W {
                     let mut v = y[j];
-                    v = madd::<FMA>(-a[0], t0[j], v);
-                    v = madd::<FMA>(-a[1], t1[j], v);
-                    v = madd::<FMA>(-a[2], t2[j], v);
-                    v = madd::<FMA>(-a[3], t3[j], v);
+                    v = mul_add::<FMA, _>(-a[0], t0[j], v);
+                    v = mul_add::<FMA, _>(-a[1], t1[j], v);
+                    v = mul_add::<FMA, _>(-a[2], t2[j], v);
+                    v = mul_add::<FMA, _>(-a[3], t3[j], v);
                     y[j] = v;
                 }
             }
@@ -256,7 +247,7 @@ fn backward<const W: usize, const FMA: bool>(
                     // SAFETY: every column slice has `rows.len()` entries, `p < rows.len()`.
                     let a = unsafe { *col.get_unchecked(p) };
                     for j in 0..W {
-                        acc[k][j] = madd::<FMA>(-a, y[j], acc[k][j]);
+                        acc[k][j] = mul_add::<FMA, _>(-a, y[j], acc[k][j]);
                     }
                 }
             }
@@ -270,7 +261,7 @@ fn backward<const W: usize, const FMA: bool>(
                 // SAFETY: as above.
                 let y = unsafe { tail.get_unchecked(row as usize - first) };
                 for j in 0..W {
-                    acc[j] = madd::<FMA>(-a, y[j], acc[j]);
+                    acc[j] = mul_add::<FMA, _>(-a, y[j], acc[j]);
                 }
             }
             top[c] = acc;
@@ -283,7 +274,7 @@ fn backward<const W: usize, const FMA: bool>(
             for r in c + 1..nc {
                 let y = top[r];
                 for j in 0..W {
-                    acc[j] = madd::<FMA>(-col[r], y[j], acc[j]);
+                    acc[j] = mul_add::<FMA, _>(-col[r], y[j], acc[j]);
                 }
             }
             let d = f.inv_diag[c0 + c];

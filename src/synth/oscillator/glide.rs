@@ -31,6 +31,7 @@
 //! Lifecycle: [`Glide::new`] allocates; [`Glide::key`] and [`Glide::retune`] never do.
 
 use super::anchor::Anchors;
+use crate::fma::mul_add;
 use crate::synth::simd::SimdBackend;
 use std::f64::consts::{PI, TAU};
 
@@ -384,16 +385,6 @@ unsafe fn retune_avx2(g: &mut GlideSlots<'_>, k: KernelState<'_>, split: usize, 
     retune_slots::<true>(g, k, split, v)
 }
 
-/// `a b + c`, fused where the target has FMA (inside [`retune_avx2`]).
-#[inline(always)]
-fn fma<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
-}
-
 /// The two halves (direct, mirrored): the kernel angle is `w` or `pi - w`.
 #[inline(always)]
 fn retune_slots<const FMA: bool>(
@@ -475,37 +466,53 @@ fn retune_half<const FMA: bool>(h: Half<'_>, base: f32, sign: f32, v: Shared) {
     for j in 0..n {
         // The law's decay at this ratio, the damped angle, the kernel's half angle.
         let x = h.slope[j] * v.ln_ratio;
-        let factor = fma::<FMA>(x, fma::<FMA>(x, fma::<FMA>(x, 1.0 / 6.0, 0.5), 1.0), 1.0);
+        let factor = mul_add::<FMA, _>(
+            x,
+            mul_add::<FMA, _>(x, mul_add::<FMA, _>(x, 1.0 / 6.0, 0.5), 1.0),
+            1.0,
+        );
         let d = h.decay[j] * factor;
-        let wd = fma::<FMA>(h.wn2[j], v.ratio_sq, -(d * d)).sqrt();
-        let half = fma::<FMA>(sign, wd, base);
+        let wd = mul_add::<FMA, _>(h.wn2[j], v.ratio_sq, -(d * d)).sqrt();
+        let half = mul_add::<FMA, _>(sign, wd, base);
         let a = d + v.extra;
         // e^(+-a) - 1 = even +- odd, to a^7.
         let a2 = a * a;
-        let even = a2 * fma::<FMA>(a2, fma::<FMA>(a2, 1.0 / 720.0, 1.0 / 24.0), 0.5);
-        let odd_series = fma::<FMA>(a2, fma::<FMA>(a2, 1.0 / 5040.0, 1.0 / 120.0), 1.0 / 6.0);
-        let odd = a * fma::<FMA>(a2, odd_series, 1.0);
+        let even = a2 * mul_add::<FMA, _>(a2, mul_add::<FMA, _>(a2, 1.0 / 720.0, 1.0 / 24.0), 0.5);
+        let odd_series = mul_add::<FMA, _>(
+            a2,
+            mul_add::<FMA, _>(a2, 1.0 / 5040.0, 1.0 / 120.0),
+            1.0 / 6.0,
+        );
+        let odd = a * mul_add::<FMA, _>(a2, odd_series, 1.0);
         let (em, ep) = (even - odd, even + odd);
         // sin, cos of the half angle (<= 0.3 pi), to its 9th and 10th powers (the first
         // terms left out are below 1.4e-8 and 1e-9).
         let h2 = half * half;
-        let sin_series = fma::<FMA>(h2, 1.0 / 362_880.0, -1.0 / 5040.0);
-        let sin_series = fma::<FMA>(h2, fma::<FMA>(h2, sin_series, 1.0 / 120.0), -1.0 / 6.0);
-        let s = half * fma::<FMA>(h2, sin_series, 1.0);
-        let cos_series = fma::<FMA>(h2, -1.0 / 3_628_800.0, 1.0 / 40_320.0);
-        let cos_series = fma::<FMA>(h2, fma::<FMA>(h2, cos_series, -1.0 / 720.0), 1.0 / 24.0);
-        let c = fma::<FMA>(h2, fma::<FMA>(h2, cos_series, -0.5), 1.0);
+        let sin_series = mul_add::<FMA, _>(h2, 1.0 / 362_880.0, -1.0 / 5040.0);
+        let sin_series = mul_add::<FMA, _>(
+            h2,
+            mul_add::<FMA, _>(h2, sin_series, 1.0 / 120.0),
+            -1.0 / 6.0,
+        );
+        let s = half * mul_add::<FMA, _>(h2, sin_series, 1.0);
+        let cos_series = mul_add::<FMA, _>(h2, -1.0 / 3_628_800.0, 1.0 / 40_320.0);
+        let cos_series = mul_add::<FMA, _>(
+            h2,
+            mul_add::<FMA, _>(h2, cos_series, -1.0 / 720.0),
+            1.0 / 24.0,
+        );
+        let c = mul_add::<FMA, _>(h2, mul_add::<FMA, _>(h2, cos_series, -0.5), 1.0);
         let s2 = s * s;
         let r = 1.0 + em;
-        h.kappa[j] = fma::<FMA>(em, em, 4.0 * r * s2);
-        h.c2[j] = fma::<FMA>(em, 2.0 + em, 1.0);
+        h.kappa[j] = mul_add::<FMA, _>(em, em, 4.0 * r * s2);
+        h.c2[j] = mul_add::<FMA, _>(em, 2.0 + em, 1.0);
         let e = 1.0 + ep;
-        let back_re = fma::<FMA>(2.0 * s2, e, -ep);
+        let back_re = mul_add::<FMA, _>(2.0 * s2, e, -ep);
         let back_im = 2.0 * e * s * c;
         // The amplitude's real part under the old constants; the state under the new.
         let y = h.y[j];
         let re = (h.dy[j] - y * h.back_re[j]) * h.inv_back_im[j];
-        h.dy[j] = fma::<FMA>(re, back_im, y * back_re);
+        h.dy[j] = mul_add::<FMA, _>(re, back_im, y * back_re);
         h.back_re[j] = back_re;
         h.inv_back_im[j] = 1.0 / back_im;
     }
