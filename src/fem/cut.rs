@@ -163,8 +163,9 @@ impl SubcellTable {
                         column.push(subcell_volume);
                     }
                     stiffness.push(column);
-                    let blocks = ElementBlocks::from_dense(nodes, &vec![0.0; ndof * ndof], &m);
-                    mass.push(blocks.m);
+                    // `m_ab`: the first component's entry of each node pair's block.
+                    let pairs = (0..nodes).flat_map(|a| (a..nodes).map(move |b| (a, b)));
+                    mass.push(pairs.map(|(a, b)| m[3 * a * ndof + 3 * b]).collect());
                 }
             }
         }

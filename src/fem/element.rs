@@ -300,8 +300,8 @@ pub(crate) const BUBBLE_FULL: usize = 24 + 9;
 pub(crate) const NODAL_DOFS: usize = 24;
 pub(crate) const BUBBLE_DOFS: usize = 9;
 
-/// `K = Kuu - Kub Kbb^-1 Kbu` for hex8i from the blocks of its uncondensed stiffness `kfull`.
-#[inline(always)]
+/// `K = Kuu - Kub Kbb^-1 Kbu` for hex8i from the blocks of its uncondensed stiffness `kfull`,
+/// as `Kuu - Y^T Y` ([`bubble_solve`]).
 pub(crate) fn condense_bubbles(kfull: &[f64; BUBBLE_FULL * BUBBLE_FULL], k: &mut [f64; 24 * 24]) {
     const NU: usize = NODAL_DOFS;
     const FULL: usize = BUBBLE_FULL;
@@ -309,22 +309,7 @@ pub(crate) fn condense_bubbles(kfull: &[f64; BUBBLE_FULL * BUBBLE_FULL], k: &mut
         std::array::from_fn(|i| std::array::from_fn(|j| kfull[(NU + i) * FULL + NU + j]));
     let kbu: [[f64; NU]; BUBBLE_DOFS] =
         std::array::from_fn(|i| std::array::from_fn(|j| kfull[(NU + i) * FULL + j]));
-    condense_blocks(kfull, FULL, &kbb, &kbu, k);
-}
-
-/// `K = Kuu - Kub Kbb^-1 Kbu`, as `Kuu - Y^T Y` ([`bubble_solve`]). `kuu` is read as the
-/// leading 24 x 24 block of a row-major matrix with `stride` columns. Inlined so that callers
-/// compiled for wider vectors vectorise it with them.
-#[inline(always)]
-pub(crate) fn condense_blocks(
-    kuu: &[f64],
-    stride: usize,
-    kbb: &[[f64; BUBBLE_DOFS]; BUBBLE_DOFS],
-    kbu: &[[f64; NODAL_DOFS]; BUBBLE_DOFS],
-    k: &mut [f64; NODAL_DOFS * NODAL_DOFS],
-) {
-    const NU: usize = NODAL_DOFS;
-    let y = bubble_solve(kbb, kbu);
+    let y = bubble_solve(&kbb, &kbu);
     for i in 0..NU {
         let mut corr = [0.0f64; NU];
         for yp in &y {
@@ -332,7 +317,7 @@ pub(crate) fn condense_blocks(
             corr.iter_mut().zip(yp).for_each(|(c, y)| *c += a * y);
         }
         let out = &mut k[i * NU..(i + 1) * NU];
-        let kuu = &kuu[i * stride..i * stride + NU];
+        let kuu = &kfull[i * FULL..i * FULL + NU];
         for ((o, kv), c) in out.iter_mut().zip(kuu).zip(corr) {
             *o = kv - c;
         }
