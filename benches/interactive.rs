@@ -183,7 +183,7 @@ fn max_relative_difference(a: &ModeBasis, b: &ModeBasis) -> f64 {
 /// units, hex8i), with this solver's time and eigenvalues for 20 and 60 modes in
 /// `DIR/ours.csv`, for `scripts/scipy-compare.sh` to solve the same problems with SciPy.
 fn export_for_scipy(dir: &std::path::Path) {
-    use modalforge::fem::sparse::shifted_upper_csc;
+    use modalforge::fem::sparse::{mass_as_blocks, shifted_upper_csc};
     use std::io::Write;
     std::fs::create_dir_all(dir).expect("output folder");
     let mut csv = std::fs::File::create(dir.join("ours.csv")).expect("ours.csv");
@@ -199,8 +199,10 @@ fn export_for_scipy(dir: &std::path::Path) {
     for (name, spec) in objects {
         let grid = grid_of(spec);
         let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, nu).expect("model");
-        for (which, a, b) in [("K", &model.k, &model.m), ("M", &model.m, &model.k)] {
-            let upper = shifted_upper_csc(&model.pattern, a, b, 0.0);
+        // The mass as 3x3 blocks, for the same CSC writer (`K - 0 M` is `K`).
+        let mass_blocks = mass_as_blocks(&model.m);
+        for (which, a) in [("K", &model.k), ("M", &mass_blocks)] {
+            let upper = shifted_upper_csc(&model.pattern, a, &model.m, 0.0);
             let path = dir.join(format!("{name}-{which}.mtx"));
             let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("mtx"));
             let n = upper.nrows();

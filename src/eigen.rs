@@ -226,16 +226,12 @@ pub struct Operators<'a> {
     pub pattern: &'a BlockPattern,
     /// Stiffness blocks.
     pub k: &'a [[f64; 9]],
-    /// Mass blocks.
-    pub m: &'a [[f64; 9]],
+    /// Mass, one scalar per block ([`sparse::MassBlocks`]).
+    pub m: &'a [f64],
     /// Infinity norm of K.
     pub k_norm: f64,
     /// Infinity norm of M.
     pub m_norm: f64,
-    /// Every block of `M` is a scalar times the identity ([`sparse::is_scalar_blocks`]: every
-    /// assembled model's is), so `M X` takes the three-times-cheaper
-    /// [`sparse::spmm_scalar`].
-    pub m_scalar: bool,
     /// `trace K / trace M`: the scale of the spectrum.
     pub scale: f64,
 }
@@ -247,15 +243,14 @@ impl<'a> Operators<'a> {
     }
 
     /// Views `K` and `M` given as node blocks on one pattern.
-    pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [[f64; 9]]) -> Self {
+    pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
         Operators {
             pattern: p,
             k,
             m,
             k_norm: sparse::norm_inf(p, k),
-            m_norm: sparse::norm_inf(p, m),
-            m_scalar: sparse::is_scalar_blocks(m),
-            scale: sparse::trace(p, k) / sparse::trace(p, m),
+            m_norm: sparse::mass_norm_inf(p, m),
+            scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
         }
     }
 
@@ -271,7 +266,7 @@ impl<'a> Operators<'a> {
 
     /// `y = M x`.
     pub fn apply_m(&self, x: &[f64], y: &mut [f64]) {
-        sparse::spmv(self.pattern, self.m, x, y)
+        sparse::spmm_mass(self.pattern, self.m, x, y, sparse::RowBlock::dense(1))
     }
 
     /// Residual of Jin et al. 2022, eq. 6 for one pair; `scratch` holds two vectors of `dofs()`.
@@ -314,13 +309,12 @@ impl<'a> Operators<'a> {
         out
     }
 
-    /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`]; the mass through
-    /// [`sparse::spmm_scalar`] where its blocks allow, [`Operators::m_scalar`]).
+    /// `Y = K X` or `M X` for a row-major block of vectors ([`sparse::spmm`], and for the
+    /// mass [`sparse::spmm_mass`]).
     pub fn spmm(&self, which: Which, x: &[f64], y: &mut [f64], layout: sparse::RowBlock) {
         match which {
             Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
-            Which::M if self.m_scalar => sparse::spmm_scalar(self.pattern, self.m, x, y, layout),
-            Which::M => sparse::spmm(self.pattern, self.m, x, y, layout),
+            Which::M => sparse::spmm_mass(self.pattern, self.m, x, y, layout),
         }
     }
 

@@ -52,8 +52,8 @@ pub struct FemModel {
     pub pattern: BlockPattern,
     /// Stiffness blocks.
     pub k: Blocks,
-    /// Mass blocks.
-    pub m: Blocks,
+    /// Mass, one scalar per block (every block is `m_ab I3`, [`sparse::MassBlocks`]).
+    pub m: sparse::MassBlocks,
 }
 
 impl FemModel {
@@ -153,7 +153,7 @@ impl FemModel {
         let mut flush = |pending: &mut Vec<usize>,
                          fills: &[f64],
                          k: &mut [[f64; 9]],
-                         m: &mut [[f64; 9]],
+                         m: &mut [f64],
                          mut cache: Option<&mut ElementCache>,
                          keys: &[Vec<u8>]| {
             if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
@@ -268,7 +268,7 @@ impl FemModel {
     pub fn scaled(&self, stiffness: f64, mass: f64) -> Self {
         let mut out = self.clone();
         out.k.iter_mut().flatten().for_each(|v| *v *= stiffness);
-        out.m.iter_mut().flatten().for_each(|v| *v *= mass);
+        out.m.iter_mut().for_each(|v| *v *= mass);
         out
     }
 

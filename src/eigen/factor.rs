@@ -52,7 +52,7 @@ impl ShiftedCholesky {
     pub fn from_blocks(
         pattern: &BlockPattern,
         k: &[[f64; 9]],
-        m: &[[f64; 9]],
+        m: &[f64],
         shift: f64,
         nodes: &[usize],
         par: Par,

@@ -26,7 +26,7 @@ use super::factor::ShiftedCholesky;
 use super::{EigenError, Operators};
 use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
-use crate::fem::sparse::{self, BlockPattern, Blocks, RowBlock, Scalar};
+use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
 use crate::shape::{lattice_coords, lattice_index};
 use faer::Par;
@@ -94,7 +94,7 @@ pub struct CoarseProblem {
     /// Galerkin stiffness.
     pub k: Blocks,
     /// Galerkin mass.
-    pub m: Blocks,
+    pub m: MassBlocks,
 }
 
 /// A multigrid hierarchy for one model (see the module docs).
@@ -150,7 +150,7 @@ impl Multigrid {
             fine_coords,
         )];
         // Coarse levels' mass matrices (the fine one is the model's own).
-        let mut masses: Vec<Blocks> = Vec::new();
+        let mut masses: Vec<MassBlocks> = Vec::new();
         let (coarse_k, coarse_m) = loop {
             let (level, k, m) = assemble(&next);
             let nodes = level.coords.len();
@@ -186,9 +186,9 @@ impl Multigrid {
         };
         for (i, level) in levels.iter_mut().enumerate() {
             let m = if i == 0 { &model.m } else { &masses[i - 1] };
-            for (a, mb) in level.a.iter_mut().zip(m) {
-                for (x, y) in a.iter_mut().zip(mb) {
-                    *x += tau * y;
+            for (a, &mb) in level.a.iter_mut().zip(m) {
+                for c in 0..3 {
+                    a[4 * c] += tau * mb;
                 }
             }
             level.prepare(max_width);
@@ -598,7 +598,7 @@ fn coarsen(fine: &CellMesh) -> CellMesh {
 }
 
 /// Assembles a cell mesh: the level (with `a` empty) and its `K`, `M`.
-fn assemble(mesh: &CellMesh) -> (Level, Blocks, Blocks) {
+fn assemble(mesh: &CellMesh) -> (Level, Blocks, MassBlocks) {
     let lattice = mesh.dims.map(|d| d + 1);
     let lidx = |x: usize, y: usize, z: usize| lattice_index([x, y, z], lattice);
     let mut lattice_node = vec![u32::MAX; lattice.iter().product()];

@@ -28,7 +28,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 pub const MAX_ANSWERS: usize = 8;
 
 /// Most bytes of answers kept (the default bowl's hex27x2 answer, matrices included, is about
-/// 20 MB).
+/// 12 MB).
 pub const MAX_BYTES: usize = 96 << 20;
 
 /// What a request asks beyond its shape.
@@ -152,7 +152,8 @@ fn approximate_bytes(b: &ModeBasis) -> usize {
         .iter()
         .map(|v| v.nrows() * v.ncols() * 8)
         .sum::<usize>();
-    (m.k.len() + m.m.len()) * 72
+    m.k.len() * 72
+        + m.m.len() * 8
         + m.pattern.col.len() * 4
         + m.pattern.row_ptr.len() * 8
         + m.elements.len() * 4

@@ -160,7 +160,7 @@ impl ElementCache {
         pattern: &super::sparse::BlockPattern,
         nodes: &[u32],
         k: &mut [[f64; 9]],
-        m: &mut [[f64; 9]],
+        m: &mut [f64],
         slots: &mut [usize],
     ) -> bool {
         let Some(entry) = self.entries.get_mut(key) else {
@@ -209,12 +209,14 @@ mod tests {
     fn difference(a: &FemModel, b: &FemModel) -> f64 {
         assert_eq!(a.pattern.col, b.pattern.col);
         let mut worst = 0.0f64;
-        for (x, y) in [(&a.k, &b.k), (&a.m, &b.m)] {
-            let scale = x.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
-            for (p, q) in x.iter().flatten().zip(y.iter().flatten()) {
+        let mut compare = |x: &[f64], y: &[f64]| {
+            let scale = x.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+            for (p, q) in x.iter().zip(y) {
                 worst = worst.max((p - q).abs() / scale);
             }
-        }
+        };
+        compare(a.k.as_flattened(), b.k.as_flattened());
+        compare(&a.m, &b.m);
         worst
     }
 

@@ -412,9 +412,8 @@ mod tests {
     #[test]
     fn unit_elements_are_symmetric_and_their_mass_is_scalar_blocks_bit_for_bit() {
         // The assembly scatters an element's upper node blocks and mirrors them
-        // (`sparse::ElementBlocks`), and the eigensolvers' mass product reads one number per
-        // block (`sparse::is_scalar_blocks`): both need these identities exactly, not to
-        // rounding.
+        // (`sparse::ElementBlocks`), and the assembled mass keeps one number per block
+        // (`sparse::MassBlocks`): both need these identities exactly, not to rounding.
         for kind in ElementKind::ALL {
             let e = UnitElement::new(kind, 0.3);
             let n = e.dofs();

@@ -2,14 +2,15 @@
 //! them, with the products the eigensolvers need and the conversion to `faer` for factoring.
 //!
 //! Both triangles are stored, so a product is one pass over the blocks; `K` and `M` share one
-//! [`BlockPattern`].
+//! [`BlockPattern`]. `K` keeps a 3x3 block per node pair ([`Blocks`]), `M` one number
+//! ([`MassBlocks`]): every finite-element mass block is `m_ab I3`.
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 
 mod mass;
 mod scatter;
 mod spmm;
-pub use mass::{is_scalar_blocks, spmm_scalar};
+pub use mass::{mass_as_blocks, mass_norm_inf, mass_trace, spmm_mass, MassBlocks};
 pub use scatter::{
     add_element, add_element_blocks, add_elements, find_slots, node_pairs, ElementBlocks,
 };
@@ -132,7 +133,7 @@ pub fn norm_inf(pattern: &BlockPattern, a: &[[f64; 9]]) -> f64 {
 pub fn shifted_upper_csc(
     pattern: &BlockPattern,
     k: &[[f64; 9]],
-    m: &[[f64; 9]],
+    m: &[f64],
     shift: f64,
 ) -> SparseColMat<usize, f64> {
     let n = pattern.nodes();
@@ -151,7 +152,8 @@ pub fn shifted_upper_csc(
                 let dmax = if b == a { c + 1 } else { 3 };
                 for d in 0..dmax {
                     row_idx.push(3 * b + d);
-                    val.push(k[blk][3 * c + d] - shift * m[blk][3 * c + d]);
+                    let mass = if c == d { m[blk] } else { 0.0 };
+                    val.push(k[blk][3 * c + d] - shift * mass);
                 }
             }
             col_ptr.push(row_idx.len());

@@ -11,9 +11,9 @@
 //! Cost: the patch's stiffness (a few hundred nodes) is factored sparse, in nested-dissection
 //! order, by the solvers' own [`ShiftedCholesky`] with no shift (2-3x faster than the dense
 //! factor it replaced); `K_pp D` is the right-hand side itself (`K_pp K_pp^-1 r = r`);
-//! `M_pp D` and the images of the combined corrections use the mass's scalar blocks (`M_ab I3`,
-//! [`crate::fem::sparse::is_scalar_blocks`]) and read the corrections by rows, a node's values
-//! side by side.
+//! `M_pp D` and the images of the combined corrections use the mass's scalars (`M_ab I3`,
+//! [`crate::fem::sparse::MassBlocks`]) and read the corrections by rows, a node's values side
+//! by side.
 
 use super::super::factor::ShiftedCholesky;
 use super::super::{from_rows, to_rows, Operators};
@@ -164,15 +164,11 @@ impl Correction {
                 if with_k {
                     add_block_product(&ops.k[b], src, &mut k_out[out.clone()]);
                 }
-                if ops.m_scalar {
-                    let s = ops.m[b][0];
-                    m_out[out]
-                        .iter_mut()
-                        .zip(src)
-                        .for_each(|(o, v)| *o += s * v);
-                } else {
-                    add_block_product(&ops.m[b], src, &mut m_out[out]);
-                }
+                let s = ops.m[b];
+                m_out[out]
+                    .iter_mut()
+                    .zip(src)
+                    .for_each(|(o, v)| *o += s * v);
             }
         }
         (k_out, m_out)
@@ -204,7 +200,6 @@ mod tests {
         for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27Blocks] {
             let model = FemModel::assemble(&grid, kind, 0.3).unwrap();
             let ops = Operators::new(&model);
-            assert!(ops.m_scalar);
             let n = model.dofs();
             let top = (0..model.nodes())
                 .map(|v| model.node_lattice_coords(v)[0])

@@ -1,31 +1,57 @@
-//! The mass product `Y = M X` on the mass's own structure: every block of a finite-element mass
+//! The mass matrix's storage and its product `Y = M X`: every block of a finite-element mass
 //! matrix is a scalar times the 3x3 identity (`M_ab I3`, the consistent mass of a displacement
-//! element: `int N_a N_b dV` couples each displacement component only with itself), so a block
-//! needs three multiply-adds per vector instead of nine.
+//! element: `int N_a N_b dV` couples each displacement component only with itself), so `M`
+//! keeps one number per node pair ([`MassBlocks`], 8 bytes where a 3x3 block takes 72) and a
+//! block of the product needs three multiply-adds per vector instead of nine.
 //!
-//! Where it sits: beside [`super::spmm`], for the eigensolvers' and the instant answer's `M X`
-//! ([`crate::eigen::Operators::spmm`], when [`is_scalar_blocks`] holds for its `M`: every model
-//! this crate assembles, every element kind, partial voxels included). Each node row
-//! accumulates, per column chunk,
-//! `m_ab` times the three contiguous-by-column rows of node `b`: the compiler vectorises the
-//! fixed-width inner loops (compiled once more for AVX2/FMA and picked at run time).
+//! Where it sits: [`crate::fem::FemModel::m`] and the multigrid's coarse masses are
+//! [`MassBlocks`] on the stiffness's [`BlockPattern`]; the assembly adds `m_ab` into them
+//! ([`super::scatter`]); the eigensolvers' and the instant answer's `M X`
+//! ([`crate::eigen::Operators::spmm`]) is [`spmm_mass`]. Each node row accumulates, per column
+//! chunk, `m_ab` times the three contiguous-by-column rows of node `b`: the compiler vectorises
+//! the fixed-width inner loops (compiled once more for AVX2/FMA and picked at run time).
 
 use super::{BlockPattern, RowBlock};
 
 /// Columns per pass: 3 x 16 accumulators (12 AVX2 registers).
 const MASS_CHUNK: usize = 16;
 
-/// Whether every block of `a` is a scalar times the identity, exactly (bit for bit: the
-/// assembly adds the same values to the three diagonal entries in the same order).
-pub fn is_scalar_blocks(a: &[[f64; 9]]) -> bool {
-    a.iter()
-        .all(|b| b[4] == b[0] && b[8] == b[0] && [1, 2, 3, 5, 6, 7].iter().all(|&i| b[i] == 0.0))
+/// Values of a mass matrix on a [`BlockPattern`]: entry `b` is the scalar `m_ab` of the block
+/// `m_ab I3` at pattern position `b`.
+pub type MassBlocks = Vec<f64>;
+
+/// The mass written out as 3x3 blocks `m_ab I3` (for the general block kernels, a matrix file,
+/// a comparison).
+pub fn mass_as_blocks(m: &[f64]) -> Vec<[f64; 9]> {
+    m.iter()
+        .map(|&s| [s, 0.0, 0.0, 0.0, s, 0.0, 0.0, 0.0, s])
+        .collect()
 }
 
-/// `Y = A X` for a block of vectors (see [`RowBlock`]) where every block of `a` is `a_b I3`
-/// ([`is_scalar_blocks`]; only `a[b][0]` is read). Same contract as [`super::spmm`]: `x` and
-/// `y` start at the block's first column and may be wider.
-pub fn spmm_scalar(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64], l: RowBlock) {
+/// Largest absolute row sum of the mass (each of a block row's three DOF rows sums the same
+/// `|m_ab|`): the 1- and infinity-norm.
+pub fn mass_norm_inf(pattern: &BlockPattern, m: &[f64]) -> f64 {
+    (0..pattern.nodes())
+        .map(|r| {
+            m[pattern.row_ptr[r]..pattern.row_ptr[r + 1]]
+                .iter()
+                .map(|v| v.abs())
+                .sum::<f64>()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Sum of the mass's diagonal (three DOFs per diagonal block).
+pub fn mass_trace(pattern: &BlockPattern, m: &[f64]) -> f64 {
+    (0..pattern.nodes())
+        .map(|r| 3.0 * m[pattern.find(r, r as u32).expect("diagonal block")])
+        .sum()
+}
+
+/// `Y = M X` for a block of vectors (see [`RowBlock`]), `M` given by its scalars `a`
+/// ([`MassBlocks`]). Same contract as [`super::spmm`]: `x` and `y` start at the block's first
+/// column and may be wider.
+pub fn spmm_mass(pattern: &BlockPattern, a: &[f64], x: &[f64], y: &mut [f64], l: RowBlock) {
     let need = (3 * pattern.nodes()).saturating_sub(1) * l.stride + l.width;
     assert!(l.width <= l.stride && x.len() >= need && y.len() >= need);
     assert_eq!(a.len(), pattern.col.len(), "one block per pattern entry");
@@ -42,19 +68,13 @@ pub fn spmm_scalar(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f
 /// [`scalar_kernel`] compiled for AVX2/FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn scalar_avx2(
-    pattern: &BlockPattern,
-    a: &[[f64; 9]],
-    x: &[f64],
-    y: &mut [f64],
-    l: RowBlock,
-) {
+unsafe fn scalar_avx2(pattern: &BlockPattern, a: &[f64], x: &[f64], y: &mut [f64], l: RowBlock) {
     scalar_kernel(pattern, a, x, y, l);
 }
 
 /// Every node row, in passes of [`MASS_CHUNK`] columns, then 8, 4, 2 and 1.
 #[inline(always)]
-fn scalar_kernel(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64], l: RowBlock) {
+fn scalar_kernel(pattern: &BlockPattern, a: &[f64], x: &[f64], y: &mut [f64], l: RowBlock) {
     for r in 0..pattern.nodes() {
         let span = pattern.row_ptr[r]..pattern.row_ptr[r + 1];
         let (cols, vals) = (&pattern.col[span.clone()], &a[span]);
@@ -82,7 +102,7 @@ fn scalar_kernel(pattern: &BlockPattern, a: &[[f64; 9]], x: &[f64], y: &mut [f64
 #[inline(always)]
 fn scalar_row<const W: usize>(
     cols: &[u32],
-    vals: &[[f64; 9]],
+    vals: &[f64],
     x: &[f64],
     y: &mut [f64],
     r: usize,
@@ -91,7 +111,7 @@ fn scalar_row<const W: usize>(
 ) {
     let mut acc = [[0.0f64; W]; 3];
     for (&col, v) in cols.iter().zip(vals) {
-        let s = v[0];
+        let s = *v;
         let base = 3 * col as usize * ld + j0;
         for (i, acc_i) in acc.iter_mut().enumerate() {
             let xs: &[f64; W] = x[base + i * ld..base + i * ld + W]
@@ -117,11 +137,12 @@ mod tests {
     use crate::shape::primitives::Primitive;
 
     #[test]
-    fn the_scalar_product_matches_the_block_product() {
-        // The partial-voxel bowl's own mass (scalar blocks) against the general block kernel,
-        // for widths that exercise every pass (16, 8, 4, 2, 1) and a strided layout. Both sum
-        // the same products (the general kernel adds exact zeros besides) in the same order
-        // per entry: equal to 1e-14 relative (FMA contraction may differ between the two).
+    fn the_mass_product_matches_the_block_product() {
+        // The partial-voxel bowl's mass against the general 3x3 block kernel on the same mass
+        // written out as `m_ab I3` blocks, for widths that exercise every pass (16, 8, 4, 2,
+        // 1) and a strided layout. Both sum the same products (the general kernel adds exact
+        // zeros besides) in the same order per entry: equal to 1e-14 relative (FMA
+        // contraction may differ between the two).
         let grid = Primitive::Bowl {
             diameter: 10.0,
             wall: 2.0,
@@ -129,15 +150,15 @@ mod tests {
         .rasterize(1.0, 1.0)
         .unwrap();
         let model = FemModel::assemble(&grid, ElementKind::Hex27Blocks, 0.24).unwrap();
-        assert!(is_scalar_blocks(&model.m));
+        let blocks = mass_as_blocks(&model.m);
         let n = model.dofs();
         let mut rng = SplitMix64::new(5);
         for (width, stride) in [(31, 31), (5, 9), (1, 1)] {
             let x: Vec<f64> = (0..n * stride).map(|_| rng.unit() - 0.5).collect();
             let (mut want, mut got) = (vec![0.0; n * stride], vec![0.0; n * stride]);
             let l = RowBlock { width, stride };
-            spmm(&model.pattern, &model.m, &x, &mut want, l);
-            spmm_scalar(&model.pattern, &model.m, &x, &mut got, l);
+            spmm(&model.pattern, &blocks, &x, &mut want, l);
+            spmm_mass(&model.pattern, &model.m, &x, &mut got, l);
             let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             for (a, b) in want.iter().zip(&got) {
                 assert!(
@@ -149,17 +170,29 @@ mod tests {
     }
 
     #[test]
-    fn every_element_kinds_mass_is_scalar_blocks_and_stiffness_is_not() {
-        // What lets the eigensolvers take the scalar path: the mass of every element kind,
-        // full and partial voxels; the stiffness couples components, so the test can fail.
+    fn the_mass_norm_and_trace_are_those_of_the_whole_matrix() {
+        // Against the 3x3-block versions on the same mass written out as blocks (exact: the
+        // same sums of the same numbers).
         let grid = Primitive::Sphere { diameter: 6.0 }
             .rasterize(1.0, 1.0)
             .unwrap();
-        assert!(!grid.is_binary());
-        for kind in ElementKind::ALL {
-            let model = FemModel::assemble(&grid, kind, 0.3).unwrap();
-            assert!(is_scalar_blocks(&model.m), "{kind:?}");
-            assert!(!is_scalar_blocks(&model.k), "{kind:?}");
-        }
+        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).unwrap();
+        let blocks = mass_as_blocks(&model.m);
+        let p = &model.pattern;
+        assert_eq!(
+            mass_norm_inf(p, &model.m),
+            crate::fem::sparse::norm_inf(p, &blocks)
+        );
+        let trace = crate::fem::sparse::trace(p, &blocks);
+        assert!((mass_trace(p, &model.m) - trace).abs() <= 1e-15 * trace);
+        // Summed over every pair, the scalars are the integral of (sum N_a)(sum N_b) = 1: the
+        // filled volume in voxel units (density 1), which partial voxels make the sphere's to
+        // within the sub-cells' resolution.
+        let total: f64 = model.m.iter().sum();
+        let volume = std::f64::consts::PI / 6.0 * 216.0;
+        assert!(
+            (total - volume).abs() < 0.02 * volume,
+            "{total} vs {volume}"
+        );
     }
 }

@@ -16,7 +16,7 @@ pub fn add_elements<'a>(
     nloc: usize,
     matrices: impl Fn(usize) -> (&'a [f64], &'a [f64]),
     k: &mut [[f64; 9]],
-    m: &mut [[f64; 9]],
+    m: &mut [f64],
 ) {
     let mut slots = vec![0usize; nloc * nloc];
     for (index, e) in elements.chunks_exact(nloc).enumerate() {
@@ -27,13 +27,16 @@ pub fn add_elements<'a>(
 
 /// Adds one element's matrices `ke`, `me` (`3 nodes.len()` square, row-major, DOFs node-major)
 /// into `k` and `m`; `slots` is scratch of `nodes.len()^2` entries.
+///
+/// # Panics
+/// If `me` is not of the form `m_ab delta_cd`, exactly ([`super::MassBlocks`] holds no more).
 pub fn add_element(
     pattern: &BlockPattern,
     nodes: &[u32],
     ke: &[f64],
     me: &[f64],
     k: &mut [[f64; 9]],
-    m: &mut [[f64; 9]],
+    m: &mut [f64],
     slots: &mut [usize],
 ) {
     let nloc = nodes.len();
@@ -42,13 +45,16 @@ pub fn add_element(
     for i in 0..nloc {
         for j in 0..nloc {
             let s = slots[i * nloc + j];
+            let mass = me[3 * i * ndof + 3 * j];
             for c in 0..3 {
                 for d in 0..3 {
                     let off = (3 * i + c) * ndof + 3 * j + d;
                     k[s][3 * c + d] += ke[off];
-                    m[s][3 * c + d] += me[off];
+                    let want = if c == d { mass } else { 0.0 };
+                    assert!(me[off] == want, "element mass is m_ab delta_cd");
                 }
             }
+            m[s] += mass;
         }
     }
 }
@@ -169,7 +175,7 @@ pub fn add_element_blocks(
     kb: &[[f64; 9]],
     mb: &[f64],
     k: &mut [[f64; 9]],
-    m: &mut [[f64; 9]],
+    m: &mut [f64],
     slots: &mut [usize],
 ) {
     let n = nodes.len();
@@ -181,9 +187,7 @@ pub fn add_element_blocks(
             let (b, s) = (&kb[pair], mb[pair]);
             let upper = slots[i * n + j];
             k[upper].iter_mut().zip(b).for_each(|(u, v)| *u += v);
-            for c in 0..3 {
-                m[upper][4 * c] += s;
-            }
+            m[upper] += s;
             if j != i {
                 let lower = slots[j * n + i];
                 let lower_k = &mut k[lower];
@@ -192,9 +196,7 @@ pub fn add_element_blocks(
                         lower_k[3 * c + d] += b[3 * d + c];
                     }
                 }
-                for c in 0..3 {
-                    m[lower][4 * c] += s;
-                }
+                m[lower] += s;
             }
             pair += 1;
         }
@@ -243,7 +245,8 @@ mod tests {
         let (ke, me) = element(8);
         let blocks = ElementBlocks::from_dense(8, &ke, &me);
         let zeros = vec![[0.0; 9]; pattern.col.len()];
-        let (mut kd, mut md, mut kb, mut mb) = (zeros.clone(), zeros.clone(), zeros.clone(), zeros);
+        let (mut kd, mut kb) = (zeros.clone(), zeros);
+        let (mut md, mut mb) = (vec![0.0; pattern.col.len()], vec![0.0; pattern.col.len()]);
         let mut slots = vec![0; 64];
         for e in elements.chunks_exact(8) {
             add_element(&pattern, e, &ke, &me, &mut kd, &mut md, &mut slots);
@@ -253,6 +256,20 @@ mod tests {
         }
         assert!(kd == kb && md == mb);
         assert!(kd.iter().flatten().any(|&v| v != 0.0));
+    }
+
+    #[test]
+    #[should_panic(expected = "m_ab delta_cd")]
+    fn a_mass_that_couples_components_is_refused() {
+        let elements: Vec<u32> = (0..8).collect();
+        let pattern = BlockPattern::from_elements(8, &elements, 8);
+        let (ke, mut me) = element(8);
+        me[1] = 1e-300;
+        let (mut k, mut m) = (
+            vec![[0.0; 9]; pattern.col.len()],
+            vec![0.0; pattern.col.len()],
+        );
+        add_element(&pattern, &elements, &ke, &me, &mut k, &mut m, &mut [0; 64]);
     }
 
     #[test]
