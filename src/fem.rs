@@ -13,6 +13,7 @@
 pub mod cache;
 pub mod cut;
 pub mod element;
+pub mod memo;
 pub mod ordering;
 pub mod sparse;
 
@@ -82,7 +83,7 @@ impl FemModel {
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
-        let unit = UnitElement::new(kind, poisson_ratio);
+        let unit = UnitElement::shared(kind, poisson_ratio);
         let mut unit = ElementBlocks::from_dense(kind.nodes(), &unit.stiffness, &unit.mass);
         // Voxel reference units: K = E h K_ref and M = rho h^3 M_ref with h the element edge.
         let (k_scale, m_scale) = (block as f64, (block * block * block) as f64);
@@ -134,7 +135,7 @@ impl FemModel {
         // in batches.
         let per_voxel = cut::subcells_per_axis(kind);
         let cut = (!grid.is_binary() || block > 1)
-            .then(|| cut::CutElement::new(kind, poisson_ratio, per_voxel * block));
+            .then(|| cut::CutElement::shared(kind, poisson_ratio, per_voxel * block));
         let mut scratch = cut.as_ref().map(|c| c.scratch());
         let subcells = cut.as_ref().map_or(0, |c| c.per_axis().pow(3));
         // The batch: element numbers, and their sub-cell fills side by side.

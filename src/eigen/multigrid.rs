@@ -112,7 +112,7 @@ pub struct Multigrid {
 impl Multigrid {
     /// Builds the hierarchy of `model` for blocks of up to `max_width` vectors.
     pub fn new(model: &FemModel, max_width: usize) -> Result<Self, EigenError> {
-        let mut unit = UnitElement::new(model.kind, model.poisson_ratio);
+        let mut unit = UnitElement::clone(&UnitElement::shared(model.kind, model.poisson_ratio));
         // The model's element matrices in voxel units (hex27x2's blocks are 2 voxels a side).
         let b = model.kind.voxels_per_element() as f64;
         unit.stiffness.iter_mut().for_each(|v| *v *= b);

@@ -105,6 +105,16 @@ pub struct CutScratch {
 }
 
 impl CutElement {
+    /// [`CutElement::new`], integrated once per process for each `kind`, `nu` and `per_axis`
+    /// that is in use ([`super::memo`]).
+    pub fn shared(kind: ElementKind, nu: f64, per_axis: usize) -> std::sync::Arc<Self> {
+        static KEPT: super::memo::Memo<(ElementKind, u64, usize), CutElement> =
+            super::memo::Memo::new();
+        KEPT.get_or_make((kind, nu.to_bits(), per_axis), || {
+            Self::new(kind, nu, per_axis)
+        })
+    }
+
     /// Integrates the `per_axis^3` sub-cells of `kind` for Poisson's ratio `nu`.
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);

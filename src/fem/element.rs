@@ -361,6 +361,13 @@ pub(crate) fn bubble_solve(
 }
 
 impl UnitElement {
+    /// [`UnitElement::new`], integrated once per process for each `kind` and `nu` that is in
+    /// use ([`super::memo`]).
+    pub fn shared(kind: ElementKind, nu: f64) -> std::sync::Arc<Self> {
+        static KEPT: super::memo::Memo<(ElementKind, u64), UnitElement> = super::memo::Memo::new();
+        KEPT.get_or_make((kind, nu.to_bits()), || Self::new(kind, nu))
+    }
+
     /// Computes the unit-cube matrices of `kind` for Poisson's ratio `nu`.
     pub fn new(kind: ElementKind, nu: f64) -> Self {
         let ndof = 3 * kind.nodes();
