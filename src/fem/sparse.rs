@@ -43,20 +43,43 @@ impl BlockPattern {
 impl BlockPattern {
     /// The pattern of an element mesh: node `a` couples to every node that shares an element
     /// with it. `elements` holds `nodes_per_element` node numbers per element.
+    ///
+    /// Row by row, from each node's elements (a first pass lists them): a mark per node keeps
+    /// each neighbour once, so a row sorts its distinct columns only (27 for a hex8 node inside
+    /// a solid, where its 8 elements name 64), and no row is a vector of its own.
     pub fn from_elements(nodes: usize, elements: &[u32], nodes_per_element: usize) -> Self {
-        let mut rows: Vec<Vec<u32>> = vec![Vec::new(); nodes];
-        for e in elements.chunks_exact(nodes_per_element) {
-            for &a in e {
-                rows[a as usize].extend_from_slice(e);
+        // The elements of each node, CSR: node `a`'s are `of_node[first[a]..first[a + 1]]`.
+        let mut first = vec![0usize; nodes + 1];
+        for &a in elements {
+            first[a as usize + 1] += 1;
+        }
+        for a in 0..nodes {
+            first[a + 1] += first[a];
+        }
+        let mut of_node = vec![0u32; elements.len()];
+        let mut next = first.clone();
+        for (e, element) in elements.chunks_exact(nodes_per_element).enumerate() {
+            for &a in element {
+                of_node[next[a as usize]] = e as u32;
+                next[a as usize] += 1;
             }
         }
+        let mut mark = vec![u32::MAX; nodes];
         let mut row_ptr = Vec::with_capacity(nodes + 1);
-        let mut col = Vec::new();
+        let mut col = Vec::with_capacity(elements.len() * nodes_per_element / 4);
         row_ptr.push(0);
-        for r in rows.iter_mut() {
-            r.sort_unstable();
-            r.dedup();
-            col.extend_from_slice(r);
+        for a in 0..nodes {
+            let start = col.len();
+            for &e in &of_node[first[a]..first[a + 1]] {
+                let e = e as usize;
+                for &b in &elements[e * nodes_per_element..(e + 1) * nodes_per_element] {
+                    if mark[b as usize] != a as u32 {
+                        mark[b as usize] = a as u32;
+                        col.push(b);
+                    }
+                }
+            }
+            col[start..].sort_unstable();
             row_ptr.push(col.len());
         }
         BlockPattern { row_ptr, col }
@@ -161,4 +184,41 @@ pub fn shifted_upper_csc(
     }
     let symbolic = SymbolicSparseColMat::new_checked(3 * n, 3 * n, col_ptr, None, row_idx);
     SparseColMat::new(symbolic, val)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pattern_holds_exactly_the_pairs_that_share_an_element() {
+        // Against the pairs listed one by one: hex8-like elements on a 3x2x2 lattice whose
+        // node numbers are scrambled (so elements' nodes are not ascending), one node shared
+        // by every element and one by none.
+        let scramble = |n: u32| (n * 7 + 3) % 25; // a permutation of 0..25
+        let mut elements = Vec::new();
+        for (x, y) in [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1)] {
+            let corner = |dx: u32, dy: u32, dz: u32| scramble((x + dx) + 4 * ((y + dy) + 3 * dz));
+            elements.extend((0..8).map(|i| corner(i & 1, (i >> 1) & 1, i >> 2)));
+            elements.push(scramble(24)); // a ninth node shared by all (off the lattice)
+        }
+        let nodes = 26; // node 25 is in no element
+        let pattern = BlockPattern::from_elements(nodes, &elements, 9);
+        let mut want = vec![std::collections::BTreeSet::new(); nodes];
+        for e in elements.chunks_exact(9) {
+            for &a in e {
+                want[a as usize].extend(e.iter().copied());
+            }
+        }
+        for (a, row) in want.iter().enumerate() {
+            let got = &pattern.col[pattern.row_ptr[a]..pattern.row_ptr[a + 1]];
+            assert_eq!(
+                got,
+                row.iter().copied().collect::<Vec<_>>().as_slice(),
+                "row {a}"
+            );
+        }
+        let used: std::collections::BTreeSet<u32> = elements.iter().copied().collect();
+        assert!(want[25].is_empty() && want[scramble(24) as usize] == used);
+    }
 }
