@@ -10,6 +10,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use faer::Par;
+use modalforge::eigen::factor::ShiftedCholesky;
 use modalforge::eigen::multigrid::Multigrid;
 use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::sparse::{self, RowBlock};
@@ -77,6 +78,31 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| sparse::spmm_mass(&bowl16.pattern, &bowl16.m, black_box(&x), &mut y, layout))
         });
     }
+    group.finish();
+    // The shifted Cholesky factor of the same object: symbolic and numeric, against the
+    // numeric factorisation alone on a pattern factored before (`ShiftedCholesky::new` keeps
+    // the symbolic factorisation of the last patterns: a stroke inside a hex27x2 block that
+    // stays occupied, another Poisson's ratio).
+    let shift = -1e-3 * eigen::Operators::new(&bowl16).scale;
+    let nodes = modalforge::fem::ordering::nested_dissection(&bowl16);
+    let mut group = c.benchmark_group("factor_bowl16_hex27x2");
+    group.sample_size(10);
+    group.bench_function("symbolic_and_numeric", |b| {
+        b.iter(|| {
+            ShiftedCholesky::from_blocks(
+                &bowl16.pattern,
+                &bowl16.k,
+                &bowl16.m,
+                shift,
+                &nodes,
+                Par::Seq,
+            )
+            .expect("factor")
+        })
+    });
+    group.bench_function("kept_symbolic", |b| {
+        b.iter(|| ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor"))
+    });
     group.finish();
     let mut mg = Multigrid::new(&model, 32).expect("hierarchy");
     let mut group = c.benchmark_group("vcycle_sphere32_hex8");
