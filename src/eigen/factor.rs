@@ -73,8 +73,8 @@ impl ShiftedCholesky {
     /// Factors `K - shift M` of `model`. The symbolic factorisation is kept for the
     /// [`KEPT_PATTERNS`] patterns factored last ([`crate::fem::memo`]): a model with the same
     /// pattern and elimination order (a stroke inside a hex27x2 block that stays occupied,
-    /// another Poisson's ratio, a shift) reuses it (about 8 ms of the default object's 76 ms
-    /// factorisation).
+    /// another Poisson's ratio, a shift) reuses it: the symbolic part is about 8 ms of the
+    /// default object's 76-100 ms factorisation (`cargo bench --bench eigen -- factor_bowl16`).
     pub fn new(model: &FemModel, shift: f64, par: Par) -> Result<Self, EigenError> {
         let nodes = ordering::nested_dissection(model);
         let kept = (model.pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT);
