@@ -17,6 +17,7 @@ pub mod memo;
 pub mod ordering;
 pub mod sparse;
 
+use crate::shape::refine::FillLookup;
 use crate::shape::{lattice_coords, lattice_index, VoxelFill};
 pub use cache::ElementCache;
 pub use element::{ElementKind, UnitElement};
@@ -151,6 +152,7 @@ impl FemModel {
         }
         let mut key = Vec::new();
         let mut pending_keys: Vec<Vec<u8>> = Vec::new();
+        let voxel_fills = FillLookup::new(grid);
         let mut flush = |pending: &mut Vec<usize>,
                          fills: &[f64],
                          k: &mut [[f64; 9]],
@@ -222,8 +224,8 @@ impl FemModel {
             let at = pending.len() * subcells;
             let out = &mut fills[at..at + subcells];
             match partial {
-                Some(fill) => voxel_subcells(grid, *v, fill, out),
-                None => gather_block_fill(grid, *v, block, per_voxel, &mut voxel_fill, out),
+                Some(fill) => voxel_subcells(&voxel_fills, *v, fill, out),
+                None => gather_block_fill(&voxel_fills, *v, block, per_voxel, &mut voxel_fill, out),
             }
             pending.push(e);
             if pending.len() == cut::CUT_BATCH {
@@ -307,12 +309,18 @@ impl FemModel {
     }
 }
 
-/// The sub-cell fractions (x fastest) of the partial voxel `v` of `grid` into `out`, whose
+/// The sub-cell fractions (x fastest) of the partial voxel `v` of the grid `fills` indexes into
+/// `out`, whose
 /// length picks the count per axis: the stored ones averaged down to 1, 2 or 4 per axis, or
 /// refined to 8 by the fill's plane in each cut sub-cell ([`crate::shape::refine`]).
-fn voxel_subcells(grid: &VoxelGrid, v: [usize; 3], fill: &crate::shape::SubFill, out: &mut [f64]) {
+fn voxel_subcells(
+    fills: &FillLookup,
+    v: [usize; 3],
+    fill: &crate::shape::SubFill,
+    out: &mut [f64],
+) {
     if out.len() == crate::shape::refine::REFINED_PER_AXIS.pow(3) {
-        crate::shape::refine::refined_fill(grid, v, fill, out);
+        crate::shape::refine::refined_fill(fills, v, fill, out);
     } else {
         fill.coarsened_into(out);
     }
@@ -376,7 +384,7 @@ fn fill_fingerprint(fills: impl IntoIterator<Item = VoxelFill>) -> u64 {
 /// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
 /// per axis (or refined, [`voxel_subcells`]).
 fn gather_block_fill(
-    grid: &VoxelGrid,
+    fills: &FillLookup,
     cell: [usize; 3],
     block: usize,
     per_voxel: usize,
@@ -392,10 +400,10 @@ fn gather_block_fill(
                     cell[1] * block + oy,
                     cell[2] * block + oz,
                 ];
-                match grid.fill_at(v[0] as isize, v[1] as isize, v[2] as isize) {
+                match fills.fill_at(v[0] as isize, v[1] as isize, v[2] as isize) {
                     VoxelFill::Empty => voxel_fill.fill(0.0),
                     VoxelFill::Full => voxel_fill.fill(1.0),
-                    VoxelFill::Partial(f) => voxel_subcells(grid, v, &f, voxel_fill),
+                    VoxelFill::Partial(f) => voxel_subcells(fills, v, &f, voxel_fill),
                 }
                 for sz in 0..per_voxel {
                     for sy in 0..per_voxel {
