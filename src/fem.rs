@@ -195,7 +195,7 @@ impl FemModel {
                 let fill = partial.map_or(VoxelFill::Full, |f| VoxelFill::Partial(*f));
                 (partial.is_none(), fill_fingerprint([fill]))
             } else {
-                block_state(grid, *v, block)
+                block_state(&voxel_fills, *v, block)
             };
             cell_fills.push(fingerprint);
             if full {
@@ -349,11 +349,11 @@ pub fn element_cells(grid: &VoxelGrid, kind: ElementKind) -> Vec<[usize; 3]> {
 
 /// Whether every voxel of the `block^3` voxels from `cell * block` is full (the unit element
 /// applies), and their fills' [`fill_fingerprint`].
-fn block_state(grid: &VoxelGrid, cell: [usize; 3], block: usize) -> (bool, u64) {
+fn block_state(voxel_fills: &FillLookup, cell: [usize; 3], block: usize) -> (bool, u64) {
     let fills = (0..block.pow(3)).map(|o| {
         let d = [o % block, (o / block) % block, o / (block * block)];
         let v = [0, 1, 2].map(|a| (cell[a] * block + d[a]) as isize);
-        grid.fill_at(v[0], v[1], v[2])
+        voxel_fills.fill_at(v[0], v[1], v[2])
     });
     let mut full = true;
     let fingerprint = fill_fingerprint(fills.inspect(|f| full &= *f == VoxelFill::Full));
