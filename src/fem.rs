@@ -17,8 +17,7 @@ pub mod memo;
 pub mod ordering;
 pub mod sparse;
 
-use crate::shape::refine::FillLookup;
-use crate::shape::{lattice_coords, lattice_index, VoxelFill};
+use crate::shape::{lattice_coords, lattice_index, FillLookup, VoxelFill};
 pub use cache::ElementCache;
 pub use element::{ElementKind, UnitElement};
 use sparse::{BlockPattern, Blocks, ElementBlocks};
