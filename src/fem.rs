@@ -85,9 +85,9 @@ impl FemModel {
         let block = kind.voxels_per_element();
         let unit = UnitElement::shared(kind, poisson_ratio);
         let mut unit = ElementBlocks::from_dense(kind.nodes(), &unit.stiffness, &unit.mass);
-        // Voxel reference units: K = E h K_ref and M = rho h^3 M_ref with h the element edge.
-        let (k_scale, m_scale) = (block as f64, (block * block * block) as f64);
+        // Voxel reference units (the cut elements come in them).
         if block > 1 {
+            let (k_scale, m_scale) = kind.voxel_scales();
             unit.scale(k_scale, m_scale);
         }
         let p = kind.order();
@@ -128,7 +128,9 @@ impl FemModel {
             }
         }
         let nodes = node_lattice.len();
-        let pattern = BlockPattern::from_elements(nodes, &elements, nloc);
+        // Each node's neighbour offsets give the pattern and every element's block positions.
+        let rows = sparse::LatticeRows::new(p, nodes, &elements);
+        let pattern = rows.pattern(&node_lattice, &lattice_node, lattice);
         let mut k = crate::buffer::zeroed(pattern.col.len());
         let mut m = crate::buffer::zeroed(pattern.col.len());
         // Partial voxels (and blocks that are not solid throughout): cut elements, evaluated
@@ -138,46 +140,63 @@ impl FemModel {
             .then(|| cut::CutElement::shared(kind, poisson_ratio, per_voxel * block));
         let mut scratch = cut.as_ref().map(|c| c.scratch());
         let subcells = cut.as_ref().map_or(0, |c| c.per_axis().pow(3));
-        // The batch: element numbers, and their sub-cell fills side by side.
-        let mut pending: Vec<usize> = Vec::with_capacity(cut::CUT_BATCH);
-        let mut fills = vec![0.0; subcells * cut::CUT_BATCH];
+        // The cut elements waiting to be integrated together.
+        let mut batch = CutBatch {
+            elements: Vec::with_capacity(cut::CUT_BATCH),
+            fills: vec![0.0; subcells * cut::CUT_BATCH],
+            keys: Vec::new(),
+            orbits: Vec::with_capacity(cut::CUT_BATCH),
+        };
         let mut voxel_fill = vec![0.0; per_voxel.pow(3)];
         let mut slots = vec![0usize; nloc * nloc];
-        let mut scaled = ElementBlocks::zeros(nloc);
         // A refined fill reads a one-voxel halo, which is then part of an element's input.
         let halo = per_voxel == crate::shape::refine::REFINED_PER_AXIS;
         if let Some(cache) = cache.as_deref_mut() {
             cache.begin(kind, poisson_ratio);
         }
         let mut key = Vec::new();
-        let mut pending_keys: Vec<Vec<u8>> = Vec::new();
-        let voxel_fills = FillLookup::new(grid);
-        let mut flush = |pending: &mut Vec<usize>,
-                         fills: &[f64],
+        // Cut elements whose fills are images of each other under a symmetry of the cube share
+        // one integration ([`cut::symmetry`]): the batch's orbits, and the mapped matrices.
+        // Only for the linear elements: the quadratic ones' refined fills come from
+        // floating-point plane fits that are symmetric only to rounding, so their orbits do not
+        // match (175 orbits for 176 cut hex27x2 blocks of the 16-voxel bowl), and ordering
+        // their 512-4096 weights costs more than it could save.
+        let mut orbits = cut
+            .as_ref()
+            .filter(|_| p == 1)
+            .map(|c| cut::symmetry::Orbits::new(p + 1, c.per_axis()));
+        let mut mapped = ElementBlocks::zeros(nloc);
+        // Only refined fills (each reads its 26 neighbours) and hex27x2 blocks (8 voxels each)
+        // look fills up by voxel; the others read the element's own fill.
+        let voxel_fills = if halo || block > 1 {
+            FillLookup::new(grid)
+        } else {
+            FillLookup::unindexed(grid)
+        };
+        let mut flush = |batch: &mut CutBatch,
                          k: &mut [[f64; 9]],
                          m: &mut [f64],
                          mut cache: Option<&mut ElementCache>,
-                         keys: &[Vec<u8>]| {
+                         mut orbits: Option<&mut cut::symmetry::Orbits>| {
             if let (Some(cut), Some(scratch)) = (&cut, &mut scratch) {
-                let batch: Vec<&[f64]> = fills.chunks_exact(subcells).take(pending.len()).collect();
-                cut.matrices_batch(&batch, scratch, |j, blocks| {
-                    let e = pending[j];
+                let count = batch.elements.len();
+                let fills: Vec<&[f64]> = batch.fills.chunks_exact(subcells).take(count).collect();
+                cut.matrices_batch(&fills, scratch, |j, blocks| {
+                    let e = batch.elements[j];
                     let nodes = &elements[e * nloc..(e + 1) * nloc];
-                    let blocks = if block == 1 {
-                        blocks
-                    } else {
-                        scaled.clone_from(blocks);
-                        scaled.scale(k_scale, m_scale);
-                        &scaled
-                    };
-                    let (kb, mb) = (&blocks.k, &blocks.m);
-                    sparse::add_element_blocks(&pattern, nodes, kb, mb, k, m, &mut slots);
+                    rows.slots(&pattern, nodes, &mut slots);
+                    sparse::add_element_blocks(&slots, &blocks.k, &blocks.m, k, m);
                     if let Some(cache) = cache.as_deref_mut() {
-                        cache.store(&keys[j], blocks);
+                        cache.store(&batch.keys[j], blocks);
+                    }
+                    if let Some(orbits) = orbits.as_deref_mut() {
+                        let (orbit, g) = batch.orbits[j];
+                        orbits.keep(orbit, g, blocks);
                     }
                 });
             }
-            pending.clear();
+            batch.elements.clear();
+            batch.orbits.clear();
         };
         let mut unit_slots = vec![0usize; nloc * nloc];
         let mut cell_fills = Vec::with_capacity(voxels.len());
@@ -198,53 +217,77 @@ impl FemModel {
             };
             cell_fills.push(fingerprint);
             if full {
-                let (kb, mb) = (&unit.k, &unit.m);
-                sparse::add_element_blocks(
-                    &pattern,
-                    nodes,
-                    kb,
-                    mb,
-                    &mut k,
-                    &mut m,
-                    &mut unit_slots,
-                );
+                rows.slots(&pattern, nodes, &mut unit_slots);
+                sparse::add_element_blocks(&unit_slots, &unit.k, &unit.m, &mut k, &mut m);
                 continue;
             }
             if let Some(cache) = cache.as_deref_mut() {
                 ElementCache::key_into(grid, *v, block, halo, &mut key);
-                if cache.add_stored(&key, &pattern, nodes, &mut k, &mut m, &mut unit_slots) {
+                rows.slots(&pattern, nodes, &mut unit_slots);
+                if cache.add_stored(&key, &unit_slots, &mut k, &mut m) {
                     continue;
                 }
-                if pending_keys.len() <= pending.len() {
-                    pending_keys.push(Vec::new());
+                let at = batch.elements.len();
+                if batch.keys.len() <= at {
+                    batch.keys.push(Vec::new());
                 }
-                pending_keys[pending.len()].clone_from(&key);
+                batch.keys[at].clone_from(&key);
             }
-            let at = pending.len() * subcells;
-            let out = &mut fills[at..at + subcells];
+            let at = batch.elements.len() * subcells;
+            let out = &mut batch.fills[at..at + subcells];
             match partial {
                 Some(fill) => voxel_subcells(&voxel_fills, *v, fill, out),
                 None => gather_block_fill(&voxel_fills, *v, block, per_voxel, &mut voxel_fill, out),
             }
-            pending.push(e);
-            if pending.len() == cut::CUT_BATCH {
+            if let Some(orbits) = orbits.as_mut() {
+                out.iter_mut().for_each(|w| *w = cut::subcell_weight(*w));
+                match orbits.find(out) {
+                    cut::symmetry::Found::New { orbit, g } => batch.orbits.push((orbit, g)),
+                    cut::symmetry::Found::Seen { orbit, g } => {
+                        if !orbits.matrices(orbit, g, &mut mapped) {
+                            // The orbit's first element waits in this batch.
+                            flush(
+                                &mut batch,
+                                &mut k,
+                                &mut m,
+                                cache.as_deref_mut(),
+                                Some(orbits),
+                            );
+                            let kept = orbits.matrices(orbit, g, &mut mapped);
+                            debug_assert!(kept, "a flush integrates every orbit in its batch");
+                        }
+                        rows.slots(&pattern, nodes, &mut unit_slots);
+                        sparse::add_element_blocks(
+                            &unit_slots,
+                            &mapped.k,
+                            &mapped.m,
+                            &mut k,
+                            &mut m,
+                        );
+                        if let Some(cache) = cache.as_deref_mut() {
+                            cache.store(&key, &mapped);
+                        }
+                        continue;
+                    }
+                }
+            }
+            batch.elements.push(e);
+            if batch.elements.len() == cut::CUT_BATCH {
                 flush(
-                    &mut pending,
-                    &fills,
+                    &mut batch,
                     &mut k,
                     &mut m,
                     cache.as_deref_mut(),
-                    &pending_keys,
+                    orbits.as_mut(),
                 );
             }
         }
         flush(
-            &mut pending,
-            &fills,
+            &mut batch,
             &mut k,
             &mut m,
             cache.as_deref_mut(),
-            &pending_keys,
+            orbits.as_mut(),
         );
         if let Some(cache) = cache {
             cache.finish();
@@ -308,10 +351,22 @@ impl FemModel {
     }
 }
 
-/// The sub-cell fractions (x fastest) of the partial voxel `v` of the grid `fills` indexes into
-/// `out`, whose
-/// length picks the count per axis: the stored ones averaged down to 1, 2 or 4 per axis, or
-/// refined to 8 by the fill's plane in each cut sub-cell ([`crate::shape::refine`]).
+/// Cut elements waiting to be integrated together ([`cut::CutElement::matrices_batch`]).
+struct CutBatch {
+    /// Their element numbers.
+    elements: Vec<usize>,
+    /// Their sub-cell fills side by side.
+    fills: Vec<f64>,
+    /// Their element cache keys (where a cache is in use; kept allocated between batches).
+    keys: Vec<Vec<u8>>,
+    /// Their orbits and the symmetries to their canonical fills ([`cut::symmetry`]).
+    orbits: Vec<(usize, usize)>,
+}
+
+/// The sub-cell fractions (x fastest) of the partial voxel `v` (its fill `fill`; `fills` looks
+/// up its neighbours) into `out`, whose length picks the count per axis: the stored ones
+/// averaged down to 1, 2 or 4 per axis, or refined to 8 by the fill's plane in each cut
+/// sub-cell ([`crate::shape::refine`]).
 fn voxel_subcells(
     fills: &FillLookup,
     v: [usize; 3],

@@ -29,6 +29,20 @@ pub fn lattice_index(c: [usize; 3], dims: [usize; 3]) -> usize {
     c[0] + dims[0] * (c[1] + dims[1] * c[2])
 }
 
+/// An axis permutation: new axis `a` is old axis `perm[a]`.
+pub type Perm = [usize; 3];
+
+/// The six axis permutations (the predictor's augmentations; with the eight reflections, the
+/// cube's 48 symmetries that cut elements share integrations under, `fem::cut::symmetry`).
+pub const PERMS: [Perm; 6] = [
+    [0, 1, 2],
+    [0, 2, 1],
+    [1, 0, 2],
+    [1, 2, 0],
+    [2, 0, 1],
+    [2, 1, 0],
+];
+
 /// Coordinates of the point with linear index `i` (the inverse of [`lattice_index`]).
 #[inline]
 pub fn lattice_coords(i: usize, dims: [usize; 3]) -> [usize; 3] {
@@ -508,6 +522,17 @@ impl<'a> FillLookup<'a> {
             slot
         });
         FillLookup { grid, slot, fills }
+    }
+
+    /// A lookup that searches the grid's map each time: for an assembly that reads few or
+    /// no neighbours' fills (binary grids, unrefined single-voxel elements), where building
+    /// the index would cost more than it saves.
+    pub fn unindexed(grid: &'a VoxelGrid) -> Self {
+        FillLookup {
+            grid,
+            slot: None,
+            fills: Vec::new(),
+        }
     }
 
     /// [`VoxelGrid::fill_at`], without the search.

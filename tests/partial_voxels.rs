@@ -63,6 +63,73 @@ fn binary_grids_assemble_exactly_todays_matrices() {
 }
 
 #[test]
+fn partial_grids_assemble_each_cut_element_as_integrated_alone() {
+    // The assembly of a curved bowl shares one integration among the cut elements whose
+    // fills are images of each other under a cube symmetry (`fem::cut::symmetry`), finds
+    // each element's blocks from its nodes' lattice offsets (`sparse::LatticeRows`) and
+    // batches the integrations. The independent truth: every element integrated on its own
+    // (`CutElement::matrices` on its sub-cell fill, the unit element on a full voxel) and
+    // scattered by the searched pattern. Equal to rounding, 1e-13 of the largest entry (a
+    // mapped element is the integration of its orbit's first, rotated: sums in another order).
+    let grid = primitive("bowl:d=12,wall=2").rasterize(1.0, 1.0).unwrap();
+    assert!(!grid.is_binary());
+    for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex8] {
+        let model = FemModel::assemble(&grid, kind, NU).unwrap();
+        let nloc = kind.nodes();
+        let pattern = sparse::BlockPattern::from_elements(model.nodes(), &model.elements, nloc);
+        assert_eq!(model.pattern.row_ptr, pattern.row_ptr, "{kind:?}");
+        assert_eq!(model.pattern.col, pattern.col, "{kind:?}");
+        let per_axis = modalforge::fem::cut::subcells_per_axis(kind);
+        let cut = modalforge::fem::cut::CutElement::new(kind, NU, per_axis);
+        let unit = UnitElement::new(kind, NU);
+        let n = 3 * nloc;
+        let (mut ke, mut me) = (vec![0.0; n * n], vec![0.0; n * n]);
+        let mut fill = vec![0.0; per_axis.pow(3)];
+        let mut scratch = cut.scratch();
+        let mut k = vec![[0.0; 9]; pattern.col.len()];
+        let mut m = vec![0.0; pattern.col.len()];
+        let mut slots = vec![0; nloc * nloc];
+        let mut cut_elements = 0;
+        for (e, v) in model.voxels.iter().enumerate() {
+            let nodes = &model.elements[e * nloc..(e + 1) * nloc];
+            match grid.subcell_fill(grid.index(v[0], v[1], v[2])) {
+                Some(sub) => {
+                    sub.coarsened_into(&mut fill);
+                    cut.matrices(&fill, &mut ke, &mut me, &mut scratch);
+                    sparse::add_element(&pattern, nodes, &ke, &me, &mut k, &mut m, &mut slots);
+                    cut_elements += 1;
+                }
+                None => sparse::add_element(
+                    &pattern,
+                    nodes,
+                    &unit.stiffness,
+                    &unit.mass,
+                    &mut k,
+                    &mut m,
+                    &mut slots,
+                ),
+            }
+        }
+        assert!(cut_elements > 100, "{cut_elements} cut elements");
+        let scale = k.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
+        let dk = model
+            .k
+            .iter()
+            .flatten()
+            .zip(k.iter().flatten())
+            .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+        assert!(dk < 1e-13 * scale, "{kind:?}: K off by {dk} of {scale}");
+        let scale = m.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        let dm = model
+            .m
+            .iter()
+            .zip(&m)
+            .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+        assert!(dm < 1e-13 * scale, "{kind:?}: M off by {dm} of {scale}");
+    }
+}
+
+#[test]
 fn hex27x2_is_hex27_on_the_grid_of_blocks() {
     // A block of 2^3 full voxels is one hex27 element of edge 2: in voxel reference units its
     // stiffness is twice and its mass eight times the unit element's (K = E h K_ref, M = rho

@@ -151,17 +151,15 @@ impl ElementCache {
         }
     }
 
-    /// Adds the matrices stored under `key` for the element with `nodes` into `k` and `m` (on
-    /// `pattern`), or returns `false` where there are none. `slots` is scratch of
-    /// `nodes.len()^2` entries.
+    /// Adds the matrices stored under `key` into `k` and `m` at the element's block positions
+    /// `slots` ([`super::sparse::add_element_blocks`]), or returns `false` where there are
+    /// none.
     pub(super) fn add_stored(
         &mut self,
         key: &[u8],
-        pattern: &super::sparse::BlockPattern,
-        nodes: &[u32],
+        slots: &[usize],
         k: &mut [[f64; 9]],
         m: &mut [f64],
-        slots: &mut [usize],
     ) -> bool {
         let Some(entry) = self.entries.get_mut(key) else {
             self.misses += 1;
@@ -169,7 +167,7 @@ impl ElementCache {
         };
         entry.used = self.assembly;
         self.hits += 1;
-        super::sparse::add_element_blocks(pattern, nodes, &entry.k, &entry.m, k, m, slots);
+        super::sparse::add_element_blocks(slots, &entry.k, &entry.m, k, m);
         true
     }
 

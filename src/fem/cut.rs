@@ -19,6 +19,7 @@ use crate::fma::mul_add;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par};
 
+pub mod symmetry;
 mod tensor;
 
 /// Partial voxels evaluated together: their fill-weighted sums are one matrix product per
@@ -30,6 +31,13 @@ pub const CUT_BATCH: usize = 64;
 /// changes a bowl's frequencies by far less than the solver tolerance but keeps every element
 /// matrix positive definite on its non-rigid motions.
 pub const EMPTY_SUBCELL_FLOOR: f64 = 1e-3;
+
+/// The weight a sub-cell filled to `fill` carries in a cut element's sums: the fill in
+/// `[0, 1]`, at least [`EMPTY_SUBCELL_FLOOR`].
+#[inline]
+pub fn subcell_weight(fill: f64) -> f64 {
+    fill.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR)
+}
 
 /// Sub-cells per voxel axis the FEM integrates a partial voxel of `kind` over, chosen by
 /// measurement (the lowest mode pair of `bowl:d=16,wall=2` and `bowl:d=32,wall=2`, glass, and
@@ -115,12 +123,20 @@ impl CutElement {
         })
     }
 
-    /// Integrates the `per_axis^3` sub-cells of `kind` for Poisson's ratio `nu`.
+    /// Integrates the `per_axis^3` sub-cells of `kind` for Poisson's ratio `nu`: the matrices
+    /// of one element in voxel units, like the assembly's unit element (scaled by
+    /// [`ElementKind::voxel_scales`] for an element over several voxels).
     pub fn new(kind: ElementKind, nu: f64, per_axis: usize) -> Self {
         let per_axis = per_axis.max(1);
         let integrals = if kind.order() == 2 {
-            Integrals::Tensor(Box::new(tensor::Hex27Subcells::new(per_axis, nu)))
+            let scales = kind.voxel_scales();
+            Integrals::Tensor(Box::new(tensor::Hex27Subcells::new(per_axis, nu, scales)))
         } else {
+            assert_eq!(
+                kind.voxels_per_element(),
+                1,
+                "linear elements span one voxel"
+            );
             Integrals::Table(Box::new(SubcellTable::new(kind, nu, per_axis)))
         };
         Self {
@@ -242,7 +258,7 @@ impl CutElement {
         for (j, fill) in fills.iter().enumerate() {
             assert_eq!(fill.len(), subcells, "one fraction per sub-cell");
             for (c, f) in fill.iter().enumerate() {
-                scratch.weights[(c, j)] = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
+                scratch.weights[(c, j)] = subcell_weight(*f);
             }
         }
         let weights = scratch.weights.as_ref().subcols(0, count);
@@ -440,8 +456,12 @@ mod tests {
         // Sum of per_axis^3 exact sub-integrals = the whole integral, up to rounding in the
         // sum of a few dozen terms per entry: 1e-13 of the largest entry.
         for kind in ElementKind::ALL {
-            let unit = UnitElement::new(kind, 0.3);
+            let mut unit = UnitElement::new(kind, 0.3);
             let n = unit.dofs();
+            // In voxel units (hex27x2's element is two voxels wide: K x 2, M x 8).
+            let (k_scale, m_scale) = kind.voxel_scales();
+            unit.stiffness.iter_mut().for_each(|v| *v *= k_scale);
+            unit.mass.iter_mut().for_each(|v| *v *= m_scale);
             for per_axis in [1, 2, 3, 4] {
                 let cut = CutElement::new(kind, 0.3, per_axis);
                 let fill = vec![1.0; per_axis.pow(3)];
@@ -536,7 +556,9 @@ mod tests {
                 .iter()
                 .map(|f| f.max(EMPTY_SUBCELL_FLOOR) / cells as f64)
                 .sum();
-            let want = volume * want_density;
+            // An element `h` voxels wide ([`ElementKind::voxel_scales`]) holds `h^3` times the
+            // volume at `1 / h` the strain (`u` is given on the unit cube's nodes).
+            let want = kind.voxel_scales().0 * volume * want_density;
             assert!(
                 (energy - want).abs() < 1e-10 * want,
                 "{kind:?}: {energy} vs {want}"
@@ -571,10 +593,18 @@ mod tests {
                     .sum()
             };
             let floor = EMPTY_SUBCELL_FLOOR;
-            let mass = 0.5 + 0.5 * floor;
-            assert!((form(&ones, &ones) - mass).abs() < 1e-14, "{kind:?}");
-            let moment = 0.5 * 0.25 + 0.5 * floor * 0.75;
-            assert!((form(&ones, &zs) - moment).abs() < 1e-14, "{kind:?}");
+            // In voxel units: hex27x2's element holds 8 voxels.
+            let scale = kind.voxel_scales().1;
+            let mass = scale * (0.5 + 0.5 * floor);
+            assert!(
+                (form(&ones, &ones) - mass).abs() < 1e-14 * scale,
+                "{kind:?}"
+            );
+            let moment = scale * (0.5 * 0.25 + 0.5 * floor * 0.75);
+            assert!(
+                (form(&ones, &zs) - moment).abs() < 1e-14 * scale,
+                "{kind:?}"
+            );
             // Rigid motions still cost nothing.
             let ku: Vec<f64> = (0..n)
                 .map(|i| (0..n).map(|j| k[i * n + j] * ones[j]).sum())

@@ -58,6 +58,14 @@ impl ElementKind {
         }
     }
 
+    /// The factors from the unit cube's matrices to one element's in voxel units,
+    /// `(stiffness, mass)`: `K = E h K_unit` and `M = rho h^3 M_unit` for an element edge of
+    /// `h` = [`ElementKind::voxels_per_element`] voxels.
+    pub fn voxel_scales(self) -> (f64, f64) {
+        let h = self.voxels_per_element() as f64;
+        (h, h * h * h)
+    }
+
     /// Nodes per element.
     pub fn nodes(self) -> usize {
         (self.order() + 1).pow(3)

@@ -102,18 +102,7 @@ pub fn read_split(data: &Path, held_out: bool) -> Result<Vec<Vec<u8>>, TrainErro
         .collect()
 }
 
-/// An axis permutation: new axis `a` is old axis `perm[a]`.
-pub type Perm = [usize; 3];
-
-/// The six axis permutations.
-pub const PERMS: [Perm; 6] = [
-    [0, 1, 2],
-    [0, 2, 1],
-    [1, 0, 2],
-    [1, 2, 0],
-    [2, 0, 1],
-    [2, 1, 0],
-];
+pub use crate::shape::{Perm, PERMS};
 
 /// The network's input for one grid under `perm`: `32^3` fill fractions, x fastest.
 pub fn input_of(grid: &crate::shape::VoxelGrid, perm: Perm) -> Vec<f32> {

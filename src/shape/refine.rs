@@ -396,12 +396,14 @@ mod tests {
         };
         let grid = VoxelGrid::from_sdf([8, 9, 7], 1.0, sdf).unwrap();
         let lookup = FillLookup::new(&grid);
+        let searched = FillLookup::unindexed(&grid);
         let (mut partial, mut full) = (0, 0);
         for z in -1..=7 {
             for y in -1..=9 {
                 for x in -1..=8 {
                     let fill = grid.fill_at(x, y, z);
                     assert_eq!(lookup.fill_at(x, y, z), fill, "({x}, {y}, {z})");
+                    assert_eq!(searched.fill_at(x, y, z), fill, "({x}, {y}, {z})");
                     partial += matches!(fill, VoxelFill::Partial(_)) as usize;
                     full += (fill == VoxelFill::Full) as usize;
                 }

@@ -31,7 +31,6 @@
 //! `K(3a+c, 3b+d) = lambda I^{cd}(a, b) + mu I^{dc}(a, b) + mu delta_cd sum_l I^{ll}(a, b)`,
 //! which is `int B^T D B` for isotropic `D` written out.
 
-use super::EMPTY_SUBCELL_FLOOR;
 use crate::fem::element::{basis_1d, gauss};
 use crate::fem::sparse::{node_pairs, ElementBlocks};
 
@@ -91,8 +90,11 @@ pub struct Hex27Subcells {
     coef: [[[[f64; L]; P]; 2]; 2],
     /// `(pair_index(a, b), pair_index(b, a))` for every node pair, `a` major.
     pairs: Vec<(u16, u16)>,
+    /// Lamé's constants times the stiffness scale.
     lambda: f64,
     mu: f64,
+    /// The mass scale.
+    mass_scale: f64,
 }
 
 /// Reusable buffers of [`Hex27Subcells::matrices`].
@@ -111,8 +113,10 @@ pub struct TensorScratch {
 
 impl Hex27Subcells {
     /// The 1D moments and coefficients for `per_axis` sub-cells per axis and Poisson's ratio
-    /// `nu` (`E = 1`).
-    pub fn new(per_axis: usize, nu: f64) -> Self {
+    /// `nu` (`E = 1`); the matrices come multiplied by `scales`, `(stiffness, mass)` (the
+    /// unit cube's element: `(1, 1)`).
+    pub fn new(per_axis: usize, nu: f64, scales: (f64, f64)) -> Self {
+        let (stiffness_scale, mass_scale) = scales;
         // Three Gauss points per sub-cell integrate the Legendre polynomials (degree 4 at
         // most) exactly.
         let (pts, wts) = gauss(3);
@@ -163,8 +167,9 @@ impl Hex27Subcells {
             moments,
             coef,
             pairs,
-            lambda: nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
-            mu: 1.0 / (2.0 * (1.0 + nu)),
+            lambda: stiffness_scale * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+            mu: stiffness_scale / (2.0 * (1.0 + nu)),
+            mass_scale,
         }
     }
 
@@ -180,7 +185,7 @@ impl Hex27Subcells {
     }
 
     /// Stiffness and mass ([`ElementBlocks`] of 27 nodes) of a hex27 element whose sub-cells
-    /// (x fastest) are filled to `fill`, each clamped to `[EMPTY_SUBCELL_FLOOR, 1]`.
+    /// (x fastest) are filled to `fill`, each clamped to `[super::EMPTY_SUBCELL_FLOOR, 1]` ([`super::subcell_weight`]).
     pub fn matrices(&self, fill: &[f64], out: &mut ElementBlocks, scratch: &mut TensorScratch) {
         let s = self.per_axis;
         assert_eq!(fill.len(), s * s * s, "one fraction per sub-cell");
@@ -215,7 +220,7 @@ impl Hex27Subcells {
     fn matrices_body(&self, fill: &[f64], out: &mut ElementBlocks, scratch: &mut TensorScratch) {
         let s = self.per_axis;
         for (w, f) in scratch.weights.iter_mut().zip(fill) {
-            *w = f.clamp(0.0, 1.0).max(EMPTY_SUBCELL_FLOOR);
+            *w = super::subcell_weight(*f);
         }
         // The fill's Legendre moments, one axis at a time. x: a row of sub-cells filled alike
         // (a full or empty voxel's) has its weight times the whole interval's, (w, 0, ...).
@@ -334,7 +339,7 @@ impl Hex27Subcells {
                         block[3 * c + d] = v;
                     }
                 }
-                out.m[pair] = ints[6][ab];
+                out.m[pair] = self.mass_scale * ints[6][ab];
                 pair += 1;
             }
         }

@@ -165,22 +165,22 @@ impl ElementBlocks {
     }
 }
 
-/// Adds one element's matrices `kb`, `mb` (an [`ElementBlocks`]'s) into `k` and `m` (on
-/// `pattern`): each pair's block into `(a, b)` and its transpose into `(b, a)`. `slots` is
-/// scratch of `nodes.len()^2` entries. For a symmetric element with `m_ab delta_cd` mass it
-/// adds the same numbers as [`add_element`] with the dense matrices.
+/// Adds one element's matrices `kb`, `mb` (an [`ElementBlocks`]'s) into `k` and `m`: each
+/// pair's block into `(a, b)` and its transpose into `(b, a)`. `slots` holds the element's
+/// block positions on the pattern of `k` and `m` ([`find_slots`], or
+/// [`super::LatticeRows::slots`] on a lattice mesh). For a symmetric element with
+/// `m_ab delta_cd` mass it adds the same numbers as [`add_element`] with the dense matrices.
+#[inline]
 pub fn add_element_blocks(
-    pattern: &BlockPattern,
-    nodes: &[u32],
+    slots: &[usize],
     kb: &[[f64; 9]],
     mb: &[f64],
     k: &mut [[f64; 9]],
     m: &mut [f64],
-    slots: &mut [usize],
 ) {
-    let n = nodes.len();
+    let n = slots.len().isqrt();
+    debug_assert!(n * n == slots.len());
     debug_assert!(kb.len() == node_pairs(n) && mb.len() == node_pairs(n));
-    find_slots(pattern, nodes, slots);
     let mut pair = 0;
     for i in 0..n {
         for j in i..n {
@@ -250,9 +250,8 @@ mod tests {
         let mut slots = vec![0; 64];
         for e in elements.chunks_exact(8) {
             add_element(&pattern, e, &ke, &me, &mut kd, &mut md, &mut slots);
-            add_element_blocks(
-                &pattern, e, &blocks.k, &blocks.m, &mut kb, &mut mb, &mut slots,
-            );
+            find_slots(&pattern, e, &mut slots);
+            add_element_blocks(&slots, &blocks.k, &blocks.m, &mut kb, &mut mb);
         }
         assert!(kd == kb && md == mb);
         assert!(kd.iter().flatten().any(|&v| v != 0.0));
