@@ -200,11 +200,15 @@ impl FemModel {
         };
         let mut unit_slots = vec![0usize; nloc * nloc];
         let mut cell_fills = Vec::with_capacity(voxels.len());
+        // One element per voxel: the voxels come in storage order, and so do the grid's
+        // partial voxels, so one walk along both finds each voxel's fill without a search.
+        let mut partial_voxels = grid.partial_voxels().peekable();
         for (e, v) in voxels.iter().enumerate() {
             let nodes = &elements[e * nloc..(e + 1) * nloc];
-            let partial = if block == 1 {
-                grid.subcell_fill(grid.index(v[0], v[1], v[2]))
-                    .filter(|_| cut.is_some())
+            let partial = if block == 1 && cut.is_some() {
+                let i = grid.index(v[0], v[1], v[2]);
+                while partial_voxels.next_if(|&(j, _)| j < i).is_some() {}
+                partial_voxels.next_if(|&(j, _)| j == i).map(|(_, f)| f)
             } else {
                 None
             };
