@@ -58,8 +58,10 @@ EOF
 day_target=${DAY_TARGET_DIR:-target/issue-day-build}
 CARGO_TARGET_DIR="$day_target" cargo build --locked --release --example assembly_day \
   --manifest-path "$tree/Cargo.toml" 2>&1 | tail -1
-cargo bench --locked --bench partial_voxels --no-run 2>&1 | tail -1
-bench=$(ls -t "${CARGO_TARGET_DIR:-target}"/release/deps/partial_voxels-* | grep -v '\.d$' | head -1)
+# The bench's own binary, as cargo names it (tests/partial_voxels.rs builds one of the same
+# name into the same directory).
+bench=$(cargo bench --locked --bench partial_voxels --no-run 2>&1 |
+  sed -n 's/.*Executable benches\/partial_voxels.rs (\(.*\))$/\1/p')
 log=target/issue-day.log
 : >"$log"
 for _ in $(seq "$rounds"); do
