@@ -190,8 +190,9 @@ impl FemModel {
                         cache.store(&batch.keys[j], blocks);
                     }
                     if let Some(orbits) = orbits.as_deref_mut() {
-                        let (orbit, g) = batch.orbits[j];
-                        orbits.keep(orbit, g, blocks);
+                        if let Some((orbit, g)) = batch.orbits[j] {
+                            orbits.keep(orbit, g, blocks);
+                        }
                     }
                 });
             }
@@ -246,7 +247,8 @@ impl FemModel {
             if let Some(orbits) = orbits.as_mut() {
                 out.iter_mut().for_each(|w| *w = cut::subcell_weight(*w));
                 match orbits.find(out) {
-                    cut::symmetry::Found::New { orbit, g } => batch.orbits.push((orbit, g)),
+                    cut::symmetry::Found::New { orbit, g } => batch.orbits.push(Some((orbit, g))),
+                    cut::symmetry::Found::Unkept => batch.orbits.push(None),
                     cut::symmetry::Found::Seen { orbit, g } => {
                         if !orbits.matrices(orbit, g, &mut mapped) {
                             // The orbit's first element waits in this batch.
@@ -363,8 +365,9 @@ struct CutBatch {
     fills: Vec<f64>,
     /// Their element cache keys (where a cache is in use; kept allocated between batches).
     keys: Vec<Vec<u8>>,
-    /// Their orbits and the symmetries to their canonical fills ([`cut::symmetry`]).
-    orbits: Vec<(usize, usize)>,
+    /// Their orbits and the symmetries to their canonical fills ([`cut::symmetry`]; `None`
+    /// past the orbits' memory budget).
+    orbits: Vec<Option<(usize, usize)>>,
 }
 
 /// The sub-cell fractions (x fastest) of the partial voxel `v` (its fill `fill`; `fills` looks

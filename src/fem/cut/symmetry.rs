@@ -218,7 +218,15 @@ pub enum Found {
         /// The symmetry from the element's fill to the canonical one.
         g: usize,
     },
+    /// A new orbit past the memory budget ([`MAX_ORBIT_BYTES`]): integrate it, keep nothing.
+    Unkept,
 }
+
+/// Most bytes an assembly's orbits keep (keys and canonical matrices): about 21 k hex8i
+/// orbits (a 16-voxel bowl has 45, a 32-voxel one 172). A large asymmetric object's cut
+/// elements are mostly orbits of one, which would otherwise double the assembly's memory;
+/// past the budget new orbits are integrated as before.
+pub const MAX_ORBIT_BYTES: usize = 64 << 20;
 
 /// The orbits of one assembly's cut elements and the matrices of their canonical fills.
 #[derive(Debug)]
@@ -229,6 +237,9 @@ pub struct Orbits {
     index: HashMap<Box<[u64]>, usize, BuildHasherDefault<KeyHasher>>,
     /// Per orbit: the canonical fill's matrices, once integrated.
     kept: Vec<Option<ElementBlocks>>,
+    /// Bytes the orbits take, and the most they may.
+    bytes: usize,
+    budget: usize,
     key: Vec<u64>,
 }
 
@@ -246,7 +257,17 @@ impl Orbits {
             starting_at,
             index: HashMap::default(),
             kept: Vec::new(),
+            bytes: 0,
+            budget: MAX_ORBIT_BYTES,
             key: Vec::new(),
+        }
+    }
+
+    /// [`Orbits::new`] keeping at most `bytes` of orbits (tests).
+    pub fn with_budget(self, bytes: usize) -> Self {
+        Orbits {
+            budget: bytes,
+            ..self
         }
     }
 
@@ -267,6 +288,14 @@ impl Orbits {
         if let Some(&orbit) = self.index.get(self.key.as_slice()) {
             return Found::Seen { orbit, g };
         }
+        // The key, the canonical matrices (a 3x3 block and a mass per node pair) and the
+        // vectors' and map's own words.
+        let pairs = self.symmetries.ops[0].pairs.len();
+        let bytes = 8 * self.key.len() + 80 * pairs + 96;
+        if self.bytes + bytes > self.budget {
+            return Found::Unkept;
+        }
+        self.bytes += bytes;
         let orbit = self.kept.len();
         self.index.insert(self.key.as_slice().into(), orbit);
         self.kept.push(None);
@@ -380,5 +409,13 @@ mod tests {
         let other = [0.9, 0.05, 0.6, 0.001, 1.0, 0.3, 0.75, 0.21];
         assert!(matches!(orbits.find(&other), Found::New { orbit: 1, .. }));
         assert_eq!(orbits.count(), 2);
+
+        // Past the budget a new orbit is not kept; the known ones still are found.
+        let mut orbits = Orbits::new(2, 2).with_budget(4000);
+        assert!(matches!(orbits.find(&fill), Found::New { orbit: 0, .. }));
+        assert_eq!(orbits.find(&other), Found::Unkept);
+        symmetries.map_fill(17, &fill, &mut image);
+        assert!(matches!(orbits.find(&image), Found::Seen { orbit: 0, .. }));
+        assert_eq!(orbits.count(), 1);
     }
 }
