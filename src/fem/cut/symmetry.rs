@@ -23,6 +23,7 @@
 //! match is an equal fill (up to the symmetry), never a near one.
 
 use crate::fem::sparse::ElementBlocks;
+use crate::shape::{lattice_coords, lattice_index};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -62,8 +63,9 @@ impl Symmetries {
     /// The symmetries for an element with `nodes_per_axis` nodes and `subcells_per_axis`
     /// sub-cells on each axis (hex8: 2 and 2).
     pub fn new(nodes_per_axis: usize, subcells_per_axis: usize) -> Self {
-        let index = |c: [usize; 3], n: usize| c[0] + n * (c[1] + n * c[2]);
-        let coords = |i: usize, n: usize| [i % n, (i / n) % n, i / (n * n)];
+        // A lattice point's index and coordinates, `n` points per axis.
+        let index = |c: [usize; 3], n: usize| lattice_index(c, [n; 3]);
+        let coords = |i: usize, n: usize| lattice_coords(i, [n; 3]);
         let mut moves: Vec<([usize; 3], [bool; 3])> = Vec::with_capacity(48);
         for sigma in crate::shape::PERMS {
             for signs in 0..8 {

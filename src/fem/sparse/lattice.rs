@@ -12,6 +12,7 @@
 //! [`super::find_slots`] remain for meshes without a lattice (the multigrid's coarse levels).
 
 use super::BlockPattern;
+use crate::shape::lattice_coords;
 
 /// Each node's neighbour offsets on a lattice mesh of order 1 or 2 (hex8, hex27).
 #[derive(Clone, Debug)]
@@ -43,7 +44,7 @@ impl LatticeRows {
         let n1 = order + 1;
         let nloc = n1 * n1 * n1;
         let (w, _) = offsets(order);
-        let local = |i: usize| [i % n1, (i / n1) % n1, i / (n1 * n1)];
+        let local = |i: usize| lattice_coords(i, [n1; 3]);
         let offset = |i: usize, j: usize| {
             let (a, b) = (local(i), local(j));
             let d = [0, 1, 2].map(|k| b[k] + order - a[k]);
@@ -88,7 +89,7 @@ impl LatticeRows {
         let (lx, ly) = (lattice[0] as isize, lattice[1] as isize);
         let delta: Vec<isize> = (0..count)
             .map(|o| {
-                let d = [o % w, (o / w) % w, o / (w * w)].map(|c| c as isize - p);
+                let d = lattice_coords(o, [w; 3]).map(|c| c as isize - p);
                 d[0] + lx * (d[1] + ly * d[2])
             })
             .collect();
@@ -133,30 +134,22 @@ impl LatticeRows {
 mod tests {
     use super::*;
     use crate::fem::sparse::find_slots;
+    use crate::shape::lattice_index;
 
     /// A lattice mesh of order `p` on a scattered set of cells of an `nx x ny x nz` grid
     /// (holes, isolated cells, thin bridges): `(elements, node_lattice, lattice_node,
     /// lattice)`, numbered as the assembly numbers them.
     fn mesh(p: usize, dims: [usize; 3]) -> (Vec<u32>, Vec<usize>, Vec<u32>, [usize; 3]) {
         let lattice = dims.map(|d| p * d + 1);
-        let idx = |c: [usize; 3]| c[0] + lattice[0] * (c[1] + lattice[1] * c[2]);
+        let idx = |c: [usize; 3]| lattice_index(c, lattice);
         let cells: Vec<[usize; 3]> = (0..dims.iter().product::<usize>())
             .filter(|i| (i * 7919) % 13 < 8)
-            .map(|i| {
-                [
-                    i % dims[0],
-                    (i / dims[0]) % dims[1],
-                    i / (dims[0] * dims[1]),
-                ]
-            })
+            .map(|i| lattice_coords(i, dims))
             .collect();
         let n1 = p + 1;
         let local = |c: [usize; 3], l: usize| {
-            idx([
-                p * c[0] + l % n1,
-                p * c[1] + (l / n1) % n1,
-                p * c[2] + l / (n1 * n1),
-            ])
+            let d = lattice_coords(l, [n1; 3]);
+            idx([0, 1, 2].map(|a| p * c[a] + d[a]))
         };
         let mut lattice_node = vec![u32::MAX; lattice.iter().product()];
         for &c in &cells {
