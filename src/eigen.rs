@@ -22,6 +22,7 @@ pub mod lanczos;
 pub mod lobpcg;
 pub mod multigrid;
 mod stop;
+pub mod symmetric;
 pub mod warm;
 
 pub use stop::Stop;
@@ -226,8 +227,15 @@ pub struct Operators<'a> {
     pub pattern: &'a BlockPattern,
     /// Stiffness blocks.
     pub k: &'a [[f64; 9]],
-    /// Mass, one scalar per block ([`sparse::MassBlocks`]).
+    /// Mass, one scalar per block ([`sparse::MassBlocks`]); empty where `mass_blocks` is set.
     pub m: &'a [f64],
+    /// The mass as 3x3 blocks instead, where it is not `m_ab I3`: a symmetry class's reduced
+    /// mass ([`symmetric`]) is diagonal but differs by component.
+    pub mass_blocks: Option<&'a [[f64; 9]]>,
+    /// DOFs that do not exist in this problem (a symmetry class's DOFs that its symmetry
+    /// forces to zero; empty for a whole model): decoupled in `K`, massless, and kept at zero in
+    /// every start vector.
+    pub absent: &'a [usize],
     /// Infinity norm of K.
     pub k_norm: f64,
     /// Infinity norm of M.
@@ -248,10 +256,24 @@ impl<'a> Operators<'a> {
             pattern: p,
             k,
             m,
+            mass_blocks: None,
+            absent: &[],
             k_norm: sparse::norm_inf(p, k),
             m_norm: sparse::mass_norm_inf(p, m),
             scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
         }
+    }
+
+    /// A deterministic random block of `b` columns ([`random_block`]) with the absent DOFs'
+    /// rows zeroed: where every Krylov basis and LOBPCG search starts.
+    pub(crate) fn random_block(&self, b: usize, seed: u64) -> Mat<f64> {
+        let mut x = random_block(self.dofs(), b, seed);
+        for &i in self.absent {
+            for j in 0..b {
+                x[(i, j)] = 0.0;
+            }
+        }
+        x
     }
 
     /// Degrees of freedom.
@@ -266,7 +288,7 @@ impl<'a> Operators<'a> {
 
     /// `y = M x`.
     pub fn apply_m(&self, x: &[f64], y: &mut [f64]) {
-        sparse::spmm_mass(self.pattern, self.m, x, y, sparse::RowBlock::dense(1))
+        self.spmm(Which::M, x, y, sparse::RowBlock::dense(1))
     }
 
     /// Residual of Jin et al. 2022, eq. 6 for one pair; `scratch` holds two vectors of `dofs()`.
@@ -314,7 +336,10 @@ impl<'a> Operators<'a> {
     pub fn spmm(&self, which: Which, x: &[f64], y: &mut [f64], layout: sparse::RowBlock) {
         match which {
             Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
-            Which::M => sparse::spmm_mass(self.pattern, self.m, x, y, layout),
+            Which::M => match self.mass_blocks {
+                Some(m) => sparse::spmm(self.pattern, m, x, y, layout),
+                None => sparse::spmm_mass(self.pattern, self.m, x, y, layout),
+            },
         }
     }
 
@@ -409,7 +434,7 @@ pub fn solve_until(
     // Lanczos' 5.5 s. Auto answers it by Lanczos, and by LOBPCG only where the factor is
     // refused for its size.
     if solver == SolverKind::Auto && model.kind == crate::fem::ElementKind::Hex27Blocks {
-        return match lanczos::solve_until(model, options, stop) {
+        return match lanczos_solve(model, options, stop) {
             Err(EigenError::Factorization(_)) => lobpcg::solve_until(model, options, stop),
             answer => answer,
         };
@@ -419,13 +444,24 @@ pub fn solve_until(
         // cut object badly; Auto then answers by Lanczos rather than fail.
         SolverKind::Lobpcg if solver == SolverKind::Auto => {
             match lobpcg::solve_until(model, options, stop) {
-                Err(EigenError::NoConvergence { .. }) => lanczos::solve_until(model, options, stop),
+                Err(EigenError::NoConvergence { .. }) => lanczos_solve(model, options, stop),
                 answer => answer,
             }
         }
         SolverKind::Lobpcg => lobpcg::solve_until(model, options, stop),
-        _ => lanczos::solve_until(model, options, stop),
+        _ => lanczos_solve(model, options, stop),
     }
+}
+
+/// Lanczos, class by class where the model is mirror-symmetric ([`symmetric`]), else on the
+/// whole model.
+fn lanczos_solve(
+    model: &FemModel,
+    options: &EigenOptions,
+    stop: Stop,
+) -> Result<EigenSolution, EigenError> {
+    symmetric::solve_until(model, options, stop)
+        .unwrap_or_else(|| lanczos::solve_until(model, options, stop))
 }
 
 /// A deterministic pseudo-random start block, entries uniform in `[-0.5, 0.5)`, so solves are

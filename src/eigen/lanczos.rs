@@ -20,9 +20,7 @@
 mod check;
 
 use super::factor::ShiftedCholesky;
-use super::{
-    random_block, EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop, Which,
-};
+use super::{EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop, Which};
 use crate::fem::FemModel;
 use check::{Check, NextBlock, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
@@ -282,7 +280,7 @@ fn block_qr(
                 return Err(EigenError::Breakdown);
             }
             *seed += 1;
-            let mut fresh_col = random_block(n, 1, *seed);
+            let mut fresh_col = ops.random_block(1, *seed);
             for _ in 0..2 {
                 basis.project_pass(0..basis.len, &mut fresh_col);
             }
@@ -392,14 +390,41 @@ pub fn run_until(
     options: &EigenOptions,
     stop: Stop,
 ) -> Result<EigenSolution, EigenError> {
+    let room = FirstRoom {
+        rigid: RIGID_BODY_MODES,
+        below: BELOW_FIRST_PAIRS,
+    };
+    run_with_room(ops, llt, shift, options, stop, room)
+}
+
+/// The pairs a solve first makes room for, before it has counted any (it grows after a
+/// restart where they were too few).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FirstRoom {
+    /// Rigid-body modes expected besides a "first k" request's `k`.
+    pub rigid: usize,
+    /// Pairs of a "below f_max" request.
+    pub below: usize,
+}
+
+/// [`run_until`] with the first room given: a symmetry class knows which rigid modes it holds
+/// and about how many modes lie below its bound ([`super::symmetric`]).
+pub(crate) fn run_with_room(
+    ops: &Operators,
+    llt: &mut ShiftedCholesky,
+    shift: f64,
+    options: &EigenOptions,
+    stop: Stop,
+    room: FirstRoom,
+) -> Result<EigenSolution, EigenError> {
     let n = ops.dofs();
     let b = options.block_size.min(n);
     let nev = match options.count {
-        ModeCount::First(k) if k + RIGID_BODY_MODES > n => {
+        ModeCount::First(k) if k + room.rigid > n => {
             return Err(EigenError::TooFewDofs { dofs: n, wanted: k })
         }
-        ModeCount::First(k) => k + RIGID_BODY_MODES,
-        ModeCount::Below(_) => BELOW_FIRST_PAIRS,
+        ModeCount::First(k) => k + room.rigid,
+        ModeCount::Below(_) => room.below,
     };
     let mut checker = RitzCheck {
         ops,
@@ -525,7 +550,7 @@ impl Krylov {
         let n = ops.dofs();
         let mut basis = Basis::new(n, cap);
         let mut seed = 1u64;
-        let (q, mq, _) = block_qr(ops, &basis, random_block(n, b, seed), &mut seed)?;
+        let (q, mq, _) = block_qr(ops, &basis, ops.random_block(b, seed), &mut seed)?;
         basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
         basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
         basis.len = b;
