@@ -229,9 +229,9 @@ pub struct Operators<'a> {
     pub k: &'a [[f64; 9]],
     /// Mass, one scalar per block ([`sparse::MassBlocks`]); empty where `mass_blocks` is set.
     pub m: &'a [f64],
-    /// The mass as 3x3 blocks instead, where it is not `m_ab I3`: a symmetry class's reduced
-    /// mass ([`symmetric`]) is diagonal but differs by component.
-    pub mass_blocks: Option<&'a [[f64; 9]]>,
+    /// The mass as diagonal blocks instead, where it is not `m_ab I3`: a symmetry class's
+    /// reduced mass ([`symmetric`]) differs by component.
+    pub mass_diagonal: Option<&'a [[f64; 3]]>,
     /// DOFs that do not exist in this problem (a symmetry class's DOFs that its symmetry
     /// forces to zero; empty for a whole model): decoupled in `K`, massless, and kept at zero in
     /// every start vector.
@@ -256,7 +256,7 @@ impl<'a> Operators<'a> {
             pattern: p,
             k,
             m,
-            mass_blocks: None,
+            mass_diagonal: None,
             absent: &[],
             k_norm: sparse::norm_inf(p, k),
             m_norm: sparse::mass_norm_inf(p, m),
@@ -336,8 +336,8 @@ impl<'a> Operators<'a> {
     pub fn spmm(&self, which: Which, x: &[f64], y: &mut [f64], layout: sparse::RowBlock) {
         match which {
             Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
-            Which::M => match self.mass_blocks {
-                Some(m) => sparse::spmm(self.pattern, m, x, y, layout),
+            Which::M => match self.mass_diagonal {
+                Some(m) => sparse::spmm_mass_diagonal(self.pattern, m, x, y, layout),
                 None => sparse::spmm_mass(self.pattern, self.m, x, y, layout),
             },
         }

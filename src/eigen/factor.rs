@@ -52,6 +52,11 @@ type SymbolicMemo = Memo<PatternKey, SymbolicCholesky<usize>, KEPT_PATTERNS>;
 /// The symbolic factorisations [`ShiftedCholesky::new`] keeps, shared by the process.
 static KEPT: SymbolicMemo = Memo::new();
 
+/// The symbolic factorisations of symmetry classes ([`ShiftedCholesky::for_class`]), apart
+/// from [`KEPT`] so an object's classes do not push out its whole pattern (which its next
+/// stroke's exact answer may reuse).
+static KEPT_CLASSES: SymbolicMemo = Memo::new();
+
 /// `K - sigma M = L L^T`, ready to solve.
 pub struct ShiftedCholesky {
     /// The factor's values, in faer's supernodal layout.
@@ -92,6 +97,20 @@ impl ShiftedCholesky {
         par: Par,
     ) -> Result<Self, EigenError> {
         Self::factor(pattern, k, m, shift, nodes, par, None)
+    }
+
+    /// Factors one symmetry class's `K - shift M`, given already shifted as `shifted` (its
+    /// mass differs by component, [`super::symmetric`]), eliminating nodes in the order
+    /// `nodes`. Every class of a model has the same pattern, so all but the first reuse the
+    /// first's symbolic factorisation.
+    pub fn for_class(
+        pattern: &BlockPattern,
+        shifted: &[[f64; 9]],
+        nodes: &[usize],
+    ) -> Result<Self, EigenError> {
+        let zero = vec![0.0; shifted.len()];
+        let kept = (pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT_CLASSES);
+        Self::factor(pattern, shifted, &zero, 0.0, nodes, Par::Seq, kept)
     }
 
     /// [`ShiftedCholesky::from_blocks`], the symbolic factorisation taken from (and kept in)

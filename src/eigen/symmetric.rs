@@ -36,7 +36,7 @@ use super::{
 };
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
-use faer::{Mat, Par};
+use faer::Mat;
 use std::time::Instant;
 
 /// Models below this many DOFs are solved whole: their solve is a few tens of ms, and their
@@ -57,6 +57,8 @@ pub const SYMMETRY_TOLERANCE: f64 = 1e-11;
 pub struct Mirrors {
     /// Mirrored axes as a bit mask (bit `a`: the plane normal to axis `a`).
     axes: u8,
+    /// Swaps of two mirrored axes that are symmetries too.
+    swaps: Vec<Swap>,
     /// Orbit of each node.
     orbit_of: Vec<u32>,
     /// The group element (a mask of mirrored axes) mapping its orbit's representative to
@@ -90,17 +92,44 @@ impl Mirrors {
         let m_max = model.m.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let mut axes = 0u8;
         let mut image = vec![Vec::new(); 3];
+        let mut at = vec![u32::MAX; nodes];
+        let scale = (k_max, m_max);
         for a in 0..3 {
-            let Some(map) = mirror_map(model, &coords, a, lo[a] + hi[a]) else {
+            let mirror = |mut c: [i64; 3]| {
+                c[a] = lo[a] + hi[a] - c[a];
+                c
+            };
+            let Some(map) = node_map(model, &coords, mirror) else {
                 continue;
             };
-            if maps_matrices(model, &map, a, k_max, m_max) {
+            if maps_matrices(model, &map, Components::mirror(a), scale, &mut at) {
                 axes |= 1 << a;
                 image[a] = map;
             }
         }
         if axes == 0 {
             return None;
+        }
+        // Swaps of two mirrored axes of equal extent: they map the classes odd in one of the
+        // two onto those odd in the other, whose modes are then images of theirs.
+        let mut swaps = Vec::new();
+        for (a, b) in [(0, 1), (1, 2), (0, 2)] {
+            let both = axes & (1 << a) != 0 && axes & (1 << b) != 0;
+            if !both || hi[a] - lo[a] != hi[b] - lo[b] {
+                continue;
+            }
+            let swap = |c: [i64; 3]| {
+                let mut m = c;
+                m[a] = c[b] - lo[b] + lo[a];
+                m[b] = c[a] - lo[a] + lo[b];
+                m
+            };
+            let Some(map) = node_map(model, &coords, swap) else {
+                continue;
+            };
+            if maps_matrices(model, &map, Components::swap(a, b), scale, &mut at) {
+                swaps.push(Swap { axes: (a, b), map });
+            }
         }
         // Orbits: the representative is the image with the smallest node number.
         let mut orbit_of = vec![u32::MAX; nodes];
@@ -134,6 +163,7 @@ impl Mirrors {
         }
         Some(Mirrors {
             axes,
+            swaps,
             orbit_of,
             from_rep,
             reps,
@@ -147,10 +177,51 @@ impl Mirrors {
         self.axes
     }
 
+    /// The swaps of two mirrored axes that are symmetries too (`(0, 1)`: x and y).
+    pub fn swaps(&self) -> Vec<(usize, usize)> {
+        self.swaps.iter().map(|s| s.axes).collect()
+    }
+
     /// The symmetry classes: one character per subset of the mirrors (bit `a` set: odd in
     /// the mirror along axis `a`).
     pub fn classes(&self) -> Vec<u8> {
         subsets(self.axes).collect()
+    }
+
+    /// The classes in groups that the axis swaps map onto one another: each group's first
+    /// class is solved, the others are images of it (each with the swaps, in order, that map
+    /// the first onto it).
+    fn groups(&self) -> Vec<Vec<(u8, Vec<usize>)>> {
+        let mut seen = 0u8;
+        let mut groups = Vec::new();
+        for chi in self.classes() {
+            if seen & (1 << chi) != 0 {
+                continue;
+            }
+            seen |= 1 << chi;
+            let mut group = vec![(chi, Vec::new())];
+            let mut at = 0;
+            while at < group.len() {
+                let (from, path) = group[at].clone();
+                for (i, swap) in self.swaps.iter().enumerate() {
+                    let to = swap.class(from);
+                    if seen & (1 << to) == 0 {
+                        seen |= 1 << to;
+                        let mut longer = path.clone();
+                        longer.push(i);
+                        group.push((to, longer));
+                    }
+                }
+                at += 1;
+            }
+            groups.push(group);
+        }
+        groups
+    }
+
+    /// Whole-model vectors of class `group[0]` mapped onto class `member` by its swaps.
+    fn image_of(&self, x: Mat<f64>, path: &[usize]) -> Mat<f64> {
+        path.iter().fold(x, |x, &i| self.swaps[i].apply(&x))
     }
 
     /// Whether the DOF `c` of orbit `o` exists in class `chi`: every mirror that fixes the
@@ -198,7 +269,7 @@ impl Mirrors {
             }
             col.extend_from_slice(&cols);
             k.resize(col.len(), [0.0; 9]);
-            m.resize(col.len(), [0.0; 9]);
+            m.resize(col.len(), [0.0; 3]);
             for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
                 let q = p.col[blk] as usize;
                 let orbit = self.orbit_of[q] as usize;
@@ -213,7 +284,7 @@ impl Mirrors {
                         k[at][3 * c + d] += s * model.k[blk][3 * c + d];
                     }
                     if present[d] {
-                        m[at][4 * d] += s * model.m[blk];
+                        m[at][d] += s * model.m[blk];
                     }
                 }
             }
@@ -245,15 +316,58 @@ impl Mirrors {
 
     /// The whole model's vectors of class-`chi` vectors `x` (one row per class DOF).
     pub fn lift(&self, chi: u8, x: faer::MatRef<'_, f64>) -> Mat<f64> {
-        let nodes = self.orbit_of.len();
-        Mat::from_fn(3 * nodes, x.ncols(), |i, j| {
-            let (q, c) = (i / 3, i % 3);
-            let o = self.orbit_of[q] as usize;
-            if !self.present(o, c, chi) {
-                return 0.0;
+        let n = 3 * self.orbit_of.len();
+        // Each whole DOF's class DOF and coefficient (zero where the class lacks it).
+        let source: Vec<(usize, f64)> = (0..n)
+            .map(|i| {
+                let (q, c) = (i / 3, i % 3);
+                let o = self.orbit_of[q] as usize;
+                if !self.present(o, c, chi) {
+                    return (0, 0.0);
+                }
+                let w = self.sign(q, c, chi) / f64::from(self.size[o]).sqrt();
+                (3 * o + c, w)
+            })
+            .collect();
+        let mut out = Mat::zeros(n, x.ncols());
+        for j in 0..x.ncols() {
+            let (from, to) = (x.col(j), out.col_mut(j));
+            for (v, &(i, w)) in to.iter_mut().zip(&source) {
+                *v = w * from[i];
             }
-            self.sign(q, c, chi) / f64::from(self.size[o]).sqrt() * x[(3 * o + c, j)]
-        })
+        }
+        out
+    }
+}
+
+/// A symmetry swapping two mirrored axes.
+struct Swap {
+    /// The two axes.
+    axes: (usize, usize),
+    /// Each node's image.
+    map: Vec<u32>,
+}
+
+impl Swap {
+    /// The class a class-`chi` vector's image lies in.
+    fn class(&self, chi: u8) -> u8 {
+        let (a, b) = self.axes;
+        let (ba, bb) = ((chi >> a) & 1, (chi >> b) & 1);
+        (chi & !(1 << a) & !(1 << b)) | (ba << b) | (bb << a)
+    }
+
+    /// The images of whole-model vectors `x`: `y(map q)[to c] = x(q)[c]`.
+    fn apply(&self, x: &Mat<f64>) -> Mat<f64> {
+        let comp = Components::swap(self.axes.0, self.axes.1);
+        let mut y = Mat::zeros(x.nrows(), x.ncols());
+        for j in 0..x.ncols() {
+            for (q, &image) in self.map.iter().enumerate() {
+                for c in 0..3 {
+                    y[(3 * image as usize + comp.to[c], j)] = x[(3 * q + c, j)];
+                }
+            }
+        }
+        y
     }
 }
 
@@ -265,8 +379,8 @@ pub struct ClassProblem {
     pub pattern: BlockPattern,
     /// Stiffness blocks.
     pub k: Vec<[f64; 9]>,
-    /// Mass blocks (diagonal: `M` couples equal components only).
-    pub m: Vec<[f64; 9]>,
+    /// Mass blocks' diagonals (`M` couples equal components only).
+    pub m: Vec<[f64; 3]>,
     /// The DOFs the class does not have.
     pub absent: Vec<usize>,
 }
@@ -279,7 +393,7 @@ impl ClassProblem {
             pattern: &self.pattern,
             k: &self.k,
             m: &[],
-            mass_blocks: Some(&self.m),
+            mass_diagonal: Some(&self.m),
             absent: &self.absent,
             k_norm: whole.k_norm,
             m_norm: whole.m_norm,
@@ -293,16 +407,18 @@ fn subsets(axes: u8) -> impl Iterator<Item = u8> {
     (0..8u8).filter(move |g| g & !axes == 0)
 }
 
-/// Node images under the mirror along `axis` through `sum / 2` (lattice coordinates), if every
-/// node has one.
-fn mirror_map(model: &FemModel, coords: &[[i64; 3]], axis: usize, sum: i64) -> Option<Vec<u32>> {
+/// Node images under a map of lattice coordinates, if every node has one.
+fn node_map(
+    model: &FemModel,
+    coords: &[[i64; 3]],
+    image_of: impl Fn([i64; 3]) -> [i64; 3],
+) -> Option<Vec<u32>> {
     let dims = model.lattice;
     coords
         .iter()
-        .map(|c| {
-            let mut m = *c;
-            m[axis] = sum - c[axis];
-            if m[axis] < 0 || m[axis] >= dims[axis] as i64 {
+        .map(|&c| {
+            let m = image_of(c);
+            if (0..3).any(|a| m[a] < 0 || m[a] >= dims[a] as i64) {
                 return None;
             }
             let idx = crate::shape::lattice_index(m.map(|v| v as usize), dims);
@@ -312,29 +428,77 @@ fn mirror_map(model: &FemModel, coords: &[[i64; 3]], axis: usize, sum: i64) -> O
         .collect()
 }
 
-/// Whether `map` (a mirror along `axis`) maps every block of `K` and `M` onto its image.
-fn maps_matrices(model: &FemModel, map: &[u32], axis: usize, k_max: f64, m_max: f64) -> bool {
+/// How a symmetry acts on a displacement's components: component `c` goes to `to[c]`, times
+/// `sign[c]`.
+#[derive(Clone, Copy)]
+struct Components {
+    to: [usize; 3],
+    sign: [f64; 3],
+}
+
+impl Components {
+    /// The mirror along `axis`: that component flips.
+    fn mirror(axis: usize) -> Self {
+        let mut sign = [1.0; 3];
+        sign[axis] = -1.0;
+        Components {
+            to: [0, 1, 2],
+            sign,
+        }
+    }
+
+    /// The swap of axes `a` and `b`.
+    fn swap(a: usize, b: usize) -> Self {
+        let mut to = [0, 1, 2];
+        to.swap(a, b);
+        Components { to, sign: [1.0; 3] }
+    }
+}
+
+/// Whether the symmetry (nodes by `map`, components by `comp`) maps every block of `K` and `M`
+/// onto its image: `K(map a, map b)[to c][to d] = sign c sign d K(a, b)[c][d]`. `at` is scratch
+/// of one entry per node, all `u32::MAX`, and is left so.
+fn maps_matrices(
+    model: &FemModel,
+    map: &[u32],
+    comp: Components,
+    (k_max, m_max): (f64, f64),
+    at: &mut [u32],
+) -> bool {
     let p = &model.pattern;
-    let flip = |c: usize| if c == axis { -1.0 } else { 1.0 };
     (0..p.nodes()).all(|a| {
-        let ma = map[a] as usize;
-        (p.row_ptr[a]..p.row_ptr[a + 1]).all(|blk| {
-            let Some(image) = p.find(ma, map[p.col[blk] as usize]) else {
-                return false;
-            };
-            let (k, ki) = (&model.k[blk], &model.k[image]);
-            let k_ok = (0..9).all(|e| {
-                let want = flip(e / 3) * flip(e % 3) * k[e];
-                (ki[e] - want).abs() <= SYMMETRY_TOLERANCE * k_max
+        // The image row's blocks by column, so each block's image is one lookup.
+        let image_row = p.row_ptr[map[a] as usize]..p.row_ptr[map[a] as usize + 1];
+        for blk in image_row.clone() {
+            at[p.col[blk] as usize] = blk as u32;
+        }
+        let row = p.row_ptr[a]..p.row_ptr[a + 1];
+        let same = row.len() == image_row.len()
+            && row.into_iter().all(|blk| {
+                let image = at[map[p.col[blk] as usize] as usize];
+                if image == u32::MAX {
+                    return false;
+                }
+                let (k, ki) = (&model.k[blk], &model.k[image as usize]);
+                let k_ok = (0..9).all(|e| {
+                    let (c, d) = (e / 3, e % 3);
+                    let want = comp.sign[c] * comp.sign[d] * k[e];
+                    (ki[3 * comp.to[c] + comp.to[d]] - want).abs() <= SYMMETRY_TOLERANCE * k_max
+                });
+                k_ok && (model.m[image as usize] - model.m[blk]).abs() <= SYMMETRY_TOLERANCE * m_max
             });
-            k_ok && (model.m[image] - model.m[blk]).abs() <= SYMMETRY_TOLERANCE * m_max
-        })
+        for blk in image_row {
+            at[p.col[blk] as usize] = u32::MAX;
+        }
+        same
     })
 }
 
 /// A class solved: its pairs and vectors, still on the representatives.
 struct ClassAnswer {
     chi: u8,
+    /// The swaps mapping it onto each class that is an image of it.
+    images: Vec<Vec<usize>>,
     /// What it was asked for.
     asked: ModeCount,
     solution: EigenSolution,
@@ -369,6 +533,7 @@ fn solve_classes(
     let whole = Operators::new(model);
     let shift = -SHIFT_RELATIVE * whole.scale;
     let classes = mirrors.classes();
+    let groups_of_classes = mirrors.groups();
     // The first class makes room for 1.5 times its share of the request; the others ask for
     // the modes below what that share reached in it (classes have about equal densities of
     // modes), or below the k-th lowest found so far once that is known.
@@ -391,17 +556,21 @@ fn solve_classes(
     let mut solved: Vec<ClassAnswer> = Vec::with_capacity(groups);
     let mut problems = Vec::with_capacity(groups);
     let mut estimate = None;
-    for &chi in &classes {
+    for group in &groups_of_classes {
+        let chi = group[0].0;
         let class = mirrors.reduce(model, chi);
         let shifted: Vec<[f64; 9]> = class
             .k
             .iter()
             .zip(&class.m)
-            .map(|(k, m)| std::array::from_fn(|e| k[e] - shift * m[e]))
+            .map(|(k, m)| {
+                std::array::from_fn(|e| match e {
+                    0 | 4 | 8 => k[e] - shift * m[e / 4],
+                    _ => k[e],
+                })
+            })
             .collect();
-        let zero = vec![0.0; shifted.len()];
-        let mut llt =
-            ShiftedCholesky::from_blocks(&class.pattern, &shifted, &zero, 0.0, &nodes, Par::Seq)?;
+        let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, &nodes)?;
         drop(shifted);
         stop.check()?;
         let count = match (kth_lowest(&solved, options.count), estimate) {
@@ -422,6 +591,7 @@ fn solve_classes(
         iterations += solution.iterations;
         solved.push(ClassAnswer {
             chi,
+            images: group[1..].iter().map(|(_, path)| path.clone()).collect(),
             asked: count,
             solution,
         });
@@ -468,11 +638,8 @@ fn solve_classes(
             let solution = solve_class(&ops, llt, shift, options, count, room, stop)?;
             iterate_ms += solution.timings.iterate_ms;
             iterations += solution.iterations;
-            solved[i] = ClassAnswer {
-                chi: class.chi,
-                asked: count,
-                solution,
-            };
+            solved[i].asked = count;
+            solved[i].solution = solution;
         }
     }
     // Never seen: each round either raises a bound or settles every class at it.
@@ -512,7 +679,13 @@ fn kth_lowest(solved: &[ClassAnswer], count: ModeCount) -> Option<f64> {
     };
     let mut all: Vec<f64> = solved
         .iter()
-        .flat_map(|s| s.solution.eigenvalues.iter().copied())
+        .flat_map(|s| {
+            let copies = 1 + s.images.len();
+            s.solution
+                .eigenvalues
+                .iter()
+                .flat_map(move |&l| std::iter::repeat_n(l, copies))
+        })
         .collect();
     (all.len() >= k).then(|| *all.select_nth_unstable_by(k - 1, f64::total_cmp).1)
 }
@@ -535,8 +708,17 @@ const BELOW_SHARE: usize = 20;
 /// filled their bases and restarted once; with twelve none did.
 const RIGID_ROOM: usize = 12;
 
+/// A class's answer lifted to the whole model (or mapped onto an image class).
+struct Lifted<'a> {
+    solution: &'a EigenSolution,
+    vectors: Mat<f64>,
+    rigid: Mat<f64>,
+    guards: Mat<f64>,
+}
+
 /// The whole model's answer from its classes': the lowest pairs of all (or those below the
-/// bound), lifted; rigid modes of every class; the next pairs above as guards.
+/// bound), lifted, the solved classes' and their images'; rigid modes of every class; the next
+/// pairs above as guards.
 fn combine(
     mirrors: &Mirrors,
     solved: &[ClassAnswer],
@@ -544,12 +726,31 @@ fn combine(
     timings: SolveTimings,
     iterations: usize,
 ) -> EigenSolution {
-    // (eigenvalue, class, column, residual)
-    let mut pairs: Vec<(f64, usize, usize, f64)> = solved
+    let mut lifted = Vec::new();
+    for s in solved {
+        let sol = &s.solution;
+        let own = Lifted {
+            solution: sol,
+            vectors: mirrors.lift(s.chi, sol.vectors.as_ref()),
+            rigid: mirrors.lift(s.chi, sol.rigid_vectors.as_ref()),
+            guards: mirrors.lift(s.chi, sol.guard_vectors.as_ref()),
+        };
+        for path in &s.images {
+            lifted.push(Lifted {
+                solution: sol,
+                vectors: mirrors.image_of(own.vectors.clone(), path),
+                rigid: mirrors.image_of(own.rigid.clone(), path),
+                guards: mirrors.image_of(own.guards.clone(), path),
+            });
+        }
+        lifted.push(own);
+    }
+    // (eigenvalue, lifted answer, column, residual)
+    let mut pairs: Vec<(f64, usize, usize, f64)> = lifted
         .iter()
         .enumerate()
-        .flat_map(|(i, s)| {
-            let sol = &s.solution;
+        .flat_map(|(i, l)| {
+            let sol = l.solution;
             (0..sol.eigenvalues.len()).map(move |j| (sol.eigenvalues[j], i, j, sol.residuals[j]))
         })
         .collect();
@@ -558,34 +759,26 @@ fn combine(
         ModeCount::First(k) => k.min(pairs.len()),
         ModeCount::Below(l) => pairs.iter().take_while(|p| p.0 <= l).count(),
     };
-    let lifted: Vec<Mat<f64>> = solved
-        .iter()
-        .map(|s| mirrors.lift(s.chi, s.solution.vectors.as_ref()))
-        .collect();
     let n = 3 * mirrors.orbit_of.len();
-    let rigid_modes: usize = solved.iter().map(|s| s.solution.rigid_modes).sum();
-    let column = |p: &(f64, usize, usize, f64)| lifted[p.1].col(p.2);
+    let rigid_modes: usize = lifted.iter().map(|l| l.solution.rigid_modes).sum();
+    let column = |p: &(f64, usize, usize, f64)| lifted[p.1].vectors.col(p.2);
     let mut guards: Vec<Mat<f64>> = Vec::new();
     let guard_count = warm_guard(rigid_modes + keep);
     let extra = &pairs[keep..pairs.len().min(keep + guard_count)];
-    guards.push(Mat::from_fn(n, extra.len(), |i, j| column(&extra[j])[i]));
+    guards.push(columns_of(n, extra, column));
     let mut have = extra.len();
-    for s in solved {
+    for l in &lifted {
         if have >= guard_count {
             break;
         }
-        let g = &s.solution.guard_vectors;
-        let take = g.ncols().min(guard_count - have);
-        guards.push(mirrors.lift(s.chi, g.get(.., 0..take)));
+        let take = l.guards.ncols().min(guard_count - have);
+        guards.push(l.guards.get(.., 0..take).to_owned());
         have += take;
     }
-    let rigid: Vec<Mat<f64>> = solved
-        .iter()
-        .map(|s| mirrors.lift(s.chi, s.solution.rigid_vectors.as_ref()))
-        .collect();
+    let rigid: Vec<Mat<f64>> = lifted.iter().map(|l| l.rigid.clone()).collect();
     EigenSolution {
         eigenvalues: pairs[..keep].iter().map(|p| p.0).collect(),
-        vectors: Mat::from_fn(n, keep, |i, j| column(&pairs[j])[i]),
+        vectors: columns_of(n, &pairs[..keep], column),
         residuals: pairs[..keep].iter().map(|p| p.3).collect(),
         rigid_modes,
         timings,
@@ -595,6 +788,19 @@ fn combine(
         guard_vectors: concat_columns(n, &guards),
         rigid_vectors: concat_columns(n, &rigid),
     }
+}
+
+/// The columns `column(pair)` of `pairs`, side by side.
+fn columns_of<'a>(
+    n: usize,
+    pairs: &[(f64, usize, usize, f64)],
+    column: impl Fn(&(f64, usize, usize, f64)) -> faer::ColRef<'a, f64>,
+) -> Mat<f64> {
+    let mut out = Mat::zeros(n, pairs.len());
+    for (j, p) in pairs.iter().enumerate() {
+        out.col_mut(j).copy_from(column(p));
+    }
+    out
 }
 
 /// The columns of `parts`, side by side.

@@ -12,7 +12,10 @@ mod mass;
 mod scatter;
 mod spmm;
 pub use lattice::LatticeRows;
-pub use mass::{mass_as_blocks, mass_norm_inf, mass_trace, spmm_mass, MassBlocks};
+pub use mass::{
+    mass_as_blocks, mass_norm_inf, mass_trace, spmm_mass, spmm_mass_diagonal, ComponentScale,
+    MassBlocks,
+};
 pub use scatter::{
     add_element, add_element_blocks, add_elements, find_slots, node_pairs, ElementBlocks,
 };
