@@ -1,0 +1,467 @@
+//! The mirrors and axis swaps of a model, its node orbits under them, and one symmetry class's
+//! reduced `K` and `M` and lifted vectors (see [`super`] for the theory and the solve).
+
+use crate::eigen::Operators;
+use crate::fem::sparse::BlockPattern;
+use crate::fem::FemModel;
+use faer::Mat;
+
+/// A mirror is accepted when every mapped block of `K` and `M` matches to this fraction of the
+/// matrix's largest entry: rounding in the refined fills of cut elements, not a real
+/// asymmetry (whose effect on the frequencies would be of the same relative size).
+pub const SYMMETRY_TOLERANCE: f64 = 1e-11;
+
+/// The mirror symmetries of a model and its node orbits under them.
+pub struct Mirrors {
+    /// Mirrored axes as a bit mask (bit `a`: the plane normal to axis `a`).
+    pub(super) axes: u8,
+    /// Swaps of two mirrored axes that are symmetries too.
+    swaps: Vec<Swap>,
+    /// Orbit of each node.
+    pub(super) orbit_of: Vec<u32>,
+    /// The group element (a mask of mirrored axes) mapping its orbit's representative to
+    /// each node.
+    from_rep: Vec<u8>,
+    /// Representative node of each orbit.
+    pub(super) reps: Vec<usize>,
+    /// Nodes in each orbit.
+    size: Vec<u8>,
+    /// Each orbit representative's stabiliser: the mirrors whose plane holds it.
+    fixed: Vec<u8>,
+}
+
+impl Mirrors {
+    /// The mirrors of `model` (planes through the centre of its nodes' bounding box that map
+    /// its `K` and `M` onto themselves), or `None` when it has none.
+    pub fn detect(model: &FemModel) -> Option<Self> {
+        let nodes = model.nodes();
+        if nodes == 0 {
+            return None;
+        }
+        let coords: Vec<[i64; 3]> = (0..nodes).map(|n| model.node_lattice_coords(n)).collect();
+        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+        for c in &coords {
+            for a in 0..3 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        // K and M are positive semi-definite, so no entry exceeds the largest diagonal one.
+        let p = &model.pattern;
+        let (mut k_max, mut m_max) = (0.0f64, 0.0f64);
+        for a in 0..nodes {
+            let d = p.find(a, a as u32).expect("diagonal block");
+            k_max = k_max
+                .max(model.k[d][0])
+                .max(model.k[d][4])
+                .max(model.k[d][8]);
+            m_max = m_max.max(model.m[d]);
+        }
+        let mut axes = 0u8;
+        let mut image = vec![Vec::new(); 3];
+        let mut at = vec![u32::MAX; nodes];
+        let scale = (k_max, m_max);
+        for a in 0..3 {
+            let mirror = |mut c: [i64; 3]| {
+                c[a] = lo[a] + hi[a] - c[a];
+                c
+            };
+            let Some(map) = node_map(model, &coords, mirror) else {
+                continue;
+            };
+            if maps_matrices(model, &map, Components::mirror(a), scale, &mut at) {
+                axes |= 1 << a;
+                image[a] = map;
+            }
+        }
+        if axes == 0 {
+            return None;
+        }
+        // Swaps of two mirrored axes of equal extent: they map the classes odd in one of the
+        // two onto those odd in the other, whose modes are then images of theirs.
+        let mut swaps = Vec::new();
+        for (a, b) in [(0, 1), (1, 2), (0, 2)] {
+            let both = axes & (1 << a) != 0 && axes & (1 << b) != 0;
+            if !both || hi[a] - lo[a] != hi[b] - lo[b] {
+                continue;
+            }
+            let swap = |c: [i64; 3]| {
+                let mut m = c;
+                m[a] = c[b] - lo[b] + lo[a];
+                m[b] = c[a] - lo[a] + lo[b];
+                m
+            };
+            let Some(map) = node_map(model, &coords, swap) else {
+                continue;
+            };
+            if maps_matrices(model, &map, Components::swap(a, b), scale, &mut at) {
+                swaps.push(Swap { axes: (a, b), map });
+            }
+        }
+        // Orbits: the representative is the image with the smallest node number.
+        let mut orbit_of = vec![u32::MAX; nodes];
+        let mut from_rep = vec![0u8; nodes];
+        let (mut reps, mut size, mut fixed) = (Vec::new(), Vec::new(), Vec::new());
+        let images = |n: usize, g: u8| -> usize {
+            (0..3)
+                .filter(|a| g & (1 << a) != 0)
+                .fold(n, |n, a| image[a][n] as usize)
+        };
+        for n in 0..nodes {
+            if orbit_of[n] != u32::MAX {
+                continue;
+            }
+            let id = reps.len() as u32;
+            let (mut count, mut stab) = (0u8, 0u8);
+            for g in subsets(axes) {
+                let q = images(n, g);
+                if q == n {
+                    stab |= g;
+                }
+                if orbit_of[q] == u32::MAX {
+                    orbit_of[q] = id;
+                    from_rep[q] = g;
+                    count += 1;
+                }
+            }
+            reps.push(n);
+            size.push(count);
+            fixed.push(stab);
+        }
+        Some(Mirrors {
+            axes,
+            swaps,
+            orbit_of,
+            from_rep,
+            reps,
+            size,
+            fixed,
+        })
+    }
+
+    /// Mirrored axes as a bit mask (bit 0: the plane normal to x).
+    pub fn axes(&self) -> u8 {
+        self.axes
+    }
+
+    /// The swaps of two mirrored axes that are symmetries too (`(0, 1)`: x and y).
+    pub fn swaps(&self) -> Vec<(usize, usize)> {
+        self.swaps.iter().map(|s| s.axes).collect()
+    }
+
+    /// The symmetry classes: one character per subset of the mirrors (bit `a` set: odd in
+    /// the mirror along axis `a`).
+    pub fn classes(&self) -> Vec<u8> {
+        subsets(self.axes).collect()
+    }
+
+    /// The classes in groups that the axis swaps map onto one another: each group's first
+    /// class is solved, the others are images of it (each with the swaps, in order, that map
+    /// the first onto it).
+    pub(super) fn groups(&self) -> Vec<Vec<(u8, Vec<usize>)>> {
+        let mut seen = 0u8;
+        let mut groups = Vec::new();
+        for chi in self.classes() {
+            if seen & (1 << chi) != 0 {
+                continue;
+            }
+            seen |= 1 << chi;
+            let mut group = vec![(chi, Vec::new())];
+            let mut at = 0;
+            while at < group.len() {
+                let (from, path) = group[at].clone();
+                for (i, swap) in self.swaps.iter().enumerate() {
+                    let to = swap.class(from);
+                    if seen & (1 << to) == 0 {
+                        seen |= 1 << to;
+                        let mut longer = path.clone();
+                        longer.push(i);
+                        group.push((to, longer));
+                    }
+                }
+                at += 1;
+            }
+            groups.push(group);
+        }
+        groups
+    }
+
+    /// Whole-model vectors of class `group[0]` mapped onto class `member` by its swaps.
+    pub(super) fn image_of(&self, x: Mat<f64>, path: &[usize]) -> Mat<f64> {
+        path.iter().fold(x, |x, &i| self.swaps[i].apply(&x))
+    }
+
+    /// Whether the DOF `c` of orbit `o` exists in class `chi`: every mirror that fixes the
+    /// representative must map its basis vector to itself times `chi`.
+    fn present(&self, o: usize, c: usize, chi: u8) -> bool {
+        (0..3)
+            .filter(|a| self.fixed[o] & (1 << a) != 0)
+            .all(|a| (chi & (1 << a) != 0) == (c == a))
+    }
+
+    /// `sigma_q(c)`: the sign of node `q`'s component `c` in its orbit's class-`chi` vector.
+    fn sign(&self, q: usize, c: usize, chi: u8) -> f64 {
+        let g = self.from_rep[q];
+        let flips = (g & chi).count_ones() + u32::from(g & (1 << c) != 0);
+        if flips.is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// `K` and `M` of class `chi` on the orbit representatives.
+    pub fn reduce(&self, model: &FemModel, chi: u8) -> ClassProblem {
+        let orbits = self.reps.len();
+        let mut row_ptr = Vec::with_capacity(orbits + 1);
+        row_ptr.push(0);
+        let (mut col, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
+        let mut slot = vec![u32::MAX; orbits];
+        let mut cols = Vec::new();
+        let p = &model.pattern;
+        for (o, &rep) in self.reps.iter().enumerate() {
+            let present: [bool; 3] = std::array::from_fn(|c| self.present(o, c, chi));
+            cols.clear();
+            for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
+                let q = self.orbit_of[p.col[blk] as usize];
+                if slot[q as usize] == u32::MAX {
+                    slot[q as usize] = 0;
+                    cols.push(q);
+                }
+            }
+            cols.sort_unstable();
+            let start = col.len();
+            for (i, &q) in cols.iter().enumerate() {
+                slot[q as usize] = (start + i) as u32;
+            }
+            col.extend_from_slice(&cols);
+            k.resize(col.len(), [0.0; 9]);
+            m.resize(col.len(), [0.0; 3]);
+            for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
+                let q = p.col[blk] as usize;
+                let orbit = self.orbit_of[q] as usize;
+                let at = slot[orbit] as usize;
+                let w = (f64::from(self.size[o]) / f64::from(self.size[orbit])).sqrt();
+                for d in 0..3 {
+                    if !self.present(orbit, d, chi) {
+                        continue;
+                    }
+                    let s = w * self.sign(q, d, chi);
+                    for c in (0..3).filter(|&c| present[c]) {
+                        k[at][3 * c + d] += s * model.k[blk][3 * c + d];
+                    }
+                    if present[d] {
+                        m[at][d] += s * model.m[blk];
+                    }
+                }
+            }
+            // An absent DOF: a decoupled row with the whole model's stiffness and no mass (an
+            // infinite eigenvalue, which shift-invert never approaches).
+            let diag = slot[o] as usize;
+            let own = p.find(rep, rep as u32).expect("diagonal block");
+            for c in (0..3).filter(|&c| !present[c]) {
+                k[diag][4 * c] = model.k[own][4 * c];
+            }
+            for &q in &cols {
+                slot[q as usize] = u32::MAX;
+            }
+            row_ptr.push(col.len());
+        }
+        let absent = (0..orbits)
+            .flat_map(|o| (0..3).map(move |c| (o, c)))
+            .filter(|&(o, c)| !self.present(o, c, chi))
+            .map(|(o, c)| 3 * o + c)
+            .collect();
+        ClassProblem {
+            chi,
+            pattern: BlockPattern { row_ptr, col },
+            k,
+            m,
+            absent,
+        }
+    }
+
+    /// The whole model's vectors of class-`chi` vectors `x` (one row per class DOF).
+    pub fn lift(&self, chi: u8, x: faer::MatRef<'_, f64>) -> Mat<f64> {
+        let n = 3 * self.orbit_of.len();
+        // Each whole DOF's class DOF and coefficient (zero where the class lacks it).
+        let source: Vec<(usize, f64)> = (0..n)
+            .map(|i| {
+                let (q, c) = (i / 3, i % 3);
+                let o = self.orbit_of[q] as usize;
+                if !self.present(o, c, chi) {
+                    return (0, 0.0);
+                }
+                let w = self.sign(q, c, chi) / f64::from(self.size[o]).sqrt();
+                (3 * o + c, w)
+            })
+            .collect();
+        let mut out = Mat::zeros(n, x.ncols());
+        for j in 0..x.ncols() {
+            let (from, to) = (x.col(j), out.col_mut(j));
+            for (v, &(i, w)) in to.iter_mut().zip(&source) {
+                *v = w * from[i];
+            }
+        }
+        out
+    }
+}
+
+/// A symmetry swapping two mirrored axes.
+struct Swap {
+    /// The two axes.
+    axes: (usize, usize),
+    /// Each node's image.
+    map: Vec<u32>,
+}
+
+impl Swap {
+    /// The class a class-`chi` vector's image lies in.
+    fn class(&self, chi: u8) -> u8 {
+        let (a, b) = self.axes;
+        let (ba, bb) = ((chi >> a) & 1, (chi >> b) & 1);
+        (chi & !(1 << a) & !(1 << b)) | (ba << b) | (bb << a)
+    }
+
+    /// The images of whole-model vectors `x`: `y(map q)[to c] = x(q)[c]`.
+    fn apply(&self, x: &Mat<f64>) -> Mat<f64> {
+        let comp = Components::swap(self.axes.0, self.axes.1);
+        let mut y = Mat::zeros(x.nrows(), x.ncols());
+        for j in 0..x.ncols() {
+            for (q, &image) in self.map.iter().enumerate() {
+                for c in 0..3 {
+                    y[(3 * image as usize + comp.to[c], j)] = x[(3 * q + c, j)];
+                }
+            }
+        }
+        y
+    }
+}
+
+/// One symmetry class's eigenproblem on the orbit representatives.
+pub struct ClassProblem {
+    /// Its character (bit `a`: odd in the mirror along axis `a`).
+    pub chi: u8,
+    /// Pattern over the orbits.
+    pub pattern: BlockPattern,
+    /// Stiffness blocks.
+    pub k: Vec<[f64; 9]>,
+    /// Mass blocks' diagonals (`M` couples equal components only).
+    pub m: Vec<[f64; 3]>,
+    /// The DOFs the class does not have.
+    pub absent: Vec<usize>,
+}
+
+impl ClassProblem {
+    /// Its operators, with the whole model's norms and scale (so residuals and the rigid
+    /// threshold are the whole model's).
+    pub(super) fn operators<'a>(&'a self, whole: &Operators) -> Operators<'a> {
+        Operators {
+            pattern: &self.pattern,
+            k: &self.k,
+            m: &[],
+            mass_diagonal: Some(&self.m),
+            absent: &self.absent,
+            k_norm: whole.k_norm,
+            m_norm: whole.m_norm,
+            scale: whole.scale,
+        }
+    }
+}
+
+/// Every subset of the bit mask `axes`, the empty one first.
+fn subsets(axes: u8) -> impl Iterator<Item = u8> {
+    (0..8u8).filter(move |g| g & !axes == 0)
+}
+
+/// Node images under a map of lattice coordinates, if every node has one.
+fn node_map(
+    model: &FemModel,
+    coords: &[[i64; 3]],
+    image_of: impl Fn([i64; 3]) -> [i64; 3],
+) -> Option<Vec<u32>> {
+    let dims = model.lattice;
+    coords
+        .iter()
+        .map(|&c| {
+            let m = image_of(c);
+            if (0..3).any(|a| m[a] < 0 || m[a] >= dims[a] as i64) {
+                return None;
+            }
+            let idx = crate::shape::lattice_index(m.map(|v| v as usize), dims);
+            let node = model.lattice_node[idx];
+            (node != u32::MAX).then_some(node)
+        })
+        .collect()
+}
+
+/// How a symmetry acts on a displacement's components: component `c` goes to `to[c]`, times
+/// `sign[c]`.
+#[derive(Clone, Copy)]
+struct Components {
+    to: [usize; 3],
+    sign: [f64; 3],
+}
+
+impl Components {
+    /// The mirror along `axis`: that component flips.
+    fn mirror(axis: usize) -> Self {
+        let mut sign = [1.0; 3];
+        sign[axis] = -1.0;
+        Components {
+            to: [0, 1, 2],
+            sign,
+        }
+    }
+
+    /// The swap of axes `a` and `b`.
+    fn swap(a: usize, b: usize) -> Self {
+        let mut to = [0, 1, 2];
+        to.swap(a, b);
+        Components { to, sign: [1.0; 3] }
+    }
+}
+
+/// Whether the symmetry (nodes by `map`, components by `comp`) maps every block of `K` and `M`
+/// onto its image: `K(map a, map b)[to c][to d] = sign c sign d K(a, b)[c][d]`. `at` is scratch
+/// of one entry per node, all `u32::MAX`, and is left so.
+fn maps_matrices(
+    model: &FemModel,
+    map: &[u32],
+    comp: Components,
+    (k_max, m_max): (f64, f64),
+    at: &mut [u32],
+) -> bool {
+    let p = &model.pattern;
+    // Entry `e = 3c + d` of a block goes to `to[e]`, times `sign[e]`.
+    let to: [usize; 9] = std::array::from_fn(|e| 3 * comp.to[e / 3] + comp.to[e % 3]);
+    let sign: [f64; 9] = std::array::from_fn(|e| comp.sign[e / 3] * comp.sign[e % 3]);
+    let (k_tol, m_tol) = (SYMMETRY_TOLERANCE * k_max, SYMMETRY_TOLERANCE * m_max);
+    // The symmetries are involutions: rows `a` and `map[a]` are compared once, from the later.
+    (0..p.nodes()).all(|a| {
+        if map[a] as usize > a {
+            return true;
+        }
+        // The image row's blocks by column, so each block's image is one lookup.
+        let image_row = p.row_ptr[map[a] as usize]..p.row_ptr[map[a] as usize + 1];
+        for blk in image_row.clone() {
+            at[p.col[blk] as usize] = blk as u32;
+        }
+        let row = p.row_ptr[a]..p.row_ptr[a + 1];
+        let same = row.len() == image_row.len()
+            && row.into_iter().all(|blk| {
+                let image = at[map[p.col[blk] as usize] as usize];
+                if image == u32::MAX {
+                    return false;
+                }
+                let (k, ki) = (&model.k[blk], &model.k[image as usize]);
+                // Branch-free over the block: one comparison per block, not per entry.
+                let worst = (0..9).fold(0.0f64, |w, e| w.max((ki[to[e]] - sign[e] * k[e]).abs()));
+                worst <= k_tol && (model.m[image as usize] - model.m[blk]).abs() <= m_tol
+            });
+        for blk in image_row {
+            at[p.col[blk] as usize] = u32::MAX;
+        }
+        same
+    })
+}
