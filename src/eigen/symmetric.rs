@@ -38,6 +38,8 @@ mod mirrors;
 
 pub use mirrors::{ClassProblem, Mirrors, SYMMETRY_TOLERANCE};
 
+use mirrors::Lifting;
+
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, FirstRoom, SHIFT_RELATIVE};
 use super::{
@@ -95,18 +97,18 @@ fn solve_classes(
 ) -> Result<EigenSolution, EigenError> {
     let whole = Operators::new(model);
     let shift = -SHIFT_RELATIVE * whole.scale;
-    let classes = mirrors.classes();
-    let groups_of_classes = mirrors.groups();
+    // Each group of classes that swaps map onto one another is solved once, for its first.
+    let groups = mirrors.groups();
     // The first class makes room for 1.5 times its share of the request; the others ask for
     // the modes below what that share reached in it (classes have about equal densities of
     // modes), or below the k-th lowest found so far once that is known.
-    let groups = classes.len();
+    let class_count = mirrors.classes().len();
     let (first, share) = match options.count {
         ModeCount::First(k) => (
-            ModeCount::First((3 * k).div_ceil(2 * groups).min(k) + 2),
-            k.div_ceil(groups),
+            ModeCount::First((3 * k).div_ceil(2 * class_count).min(k) + 2),
+            k.div_ceil(class_count),
         ),
-        below => (below, BELOW_SHARE.div_ceil(groups)),
+        below => (below, BELOW_SHARE.div_ceil(class_count)),
     };
     let p = model.kind.order() as i64;
     let coords: Vec<[i64; 3]> = mirrors
@@ -116,10 +118,10 @@ fn solve_classes(
         .collect();
     let nodes = ordering::nested_dissection_of(&coords, p);
     let (mut iterate_ms, mut iterations) = (0.0, 0);
-    let mut solved: Vec<ClassAnswer> = Vec::with_capacity(groups);
-    let mut problems = Vec::with_capacity(groups);
+    let mut solved: Vec<ClassAnswer> = Vec::with_capacity(groups.len());
+    let mut problems = Vec::with_capacity(groups.len());
     let mut estimate = None;
-    for group in &groups_of_classes {
+    for group in &groups {
         let chi = group[0].0;
         let class = mirrors.reduce(model, chi);
         let shifted: Vec<[f64; 9]> = class
@@ -205,7 +207,8 @@ fn solve_classes(
             solved[i].solution = solution;
         }
     }
-    // Never seen: each round either raises a bound or settles every class at it.
+    // Not met in the tests (each round raises a bound or settles the classes at it); the
+    // caller then solves the model whole, as it does for a class too small for its request.
     Err(EigenError::TooFewDofs {
         dofs: model.dofs(),
         wanted: match options.count {
@@ -292,11 +295,12 @@ fn combine(
     let mut lifted = Vec::new();
     for s in solved {
         let sol = &s.solution;
+        let lifting = Lifting::new(mirrors, s.chi);
         let own = Lifted {
             solution: sol,
-            vectors: mirrors.lift(s.chi, sol.vectors.as_ref()),
-            rigid: mirrors.lift(s.chi, sol.rigid_vectors.as_ref()),
-            guards: mirrors.lift(s.chi, sol.guard_vectors.as_ref()),
+            vectors: lifting.apply(sol.vectors.as_ref()),
+            rigid: lifting.apply(sol.rigid_vectors.as_ref()),
+            guards: lifting.apply(sol.guard_vectors.as_ref()),
         };
         for path in &s.images {
             lifted.push(Lifted {

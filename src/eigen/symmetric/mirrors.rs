@@ -283,23 +283,39 @@ impl Mirrors {
 
     /// The whole model's vectors of class-`chi` vectors `x` (one row per class DOF).
     pub fn lift(&self, chi: u8, x: faer::MatRef<'_, f64>) -> Mat<f64> {
-        let n = 3 * self.orbit_of.len();
-        // Each whole DOF's class DOF and coefficient (zero where the class lacks it).
-        let source: Vec<(usize, f64)> = (0..n)
-            .map(|i| {
-                let (q, c) = (i / 3, i % 3);
-                let o = self.orbit_of[q] as usize;
-                if !self.present(o, c, chi) {
-                    return (0, 0.0);
-                }
-                let w = self.sign(q, c, chi) / f64::from(self.size[o]).sqrt();
-                (3 * o + c, w)
-            })
-            .collect();
-        let mut out = Mat::zeros(n, x.ncols());
+        Lifting::new(self, chi).apply(x)
+    }
+}
+
+/// Each whole-model DOF's class DOF and coefficient in one class's basis (zero where the class
+/// lacks it): what lifting a class's vectors reads, made once per class.
+pub(super) struct Lifting(Vec<(usize, f64)>);
+
+impl Lifting {
+    /// The lifting of class `chi`.
+    pub(super) fn new(mirrors: &Mirrors, chi: u8) -> Self {
+        let n = 3 * mirrors.orbit_of.len();
+        Lifting(
+            (0..n)
+                .map(|i| {
+                    let (q, c) = (i / 3, i % 3);
+                    let o = mirrors.orbit_of[q] as usize;
+                    if !mirrors.present(o, c, chi) {
+                        return (0, 0.0);
+                    }
+                    let w = mirrors.sign(q, c, chi) / f64::from(mirrors.size[o]).sqrt();
+                    (3 * o + c, w)
+                })
+                .collect(),
+        )
+    }
+
+    /// The whole model's vectors of class vectors `x`.
+    pub(super) fn apply(&self, x: faer::MatRef<'_, f64>) -> Mat<f64> {
+        let mut out = Mat::zeros(self.0.len(), x.ncols());
         for j in 0..x.ncols() {
             let (from, to) = (x.col(j), out.col_mut(j));
-            for (v, &(i, w)) in to.iter_mut().zip(&source) {
+            for (v, &(i, w)) in to.iter_mut().zip(&self.0) {
                 *v = w * from[i];
             }
         }
