@@ -227,7 +227,7 @@ pub struct Operators<'a> {
     pub pattern: &'a BlockPattern,
     /// Stiffness blocks.
     pub k: &'a [[f64; 9]],
-    /// Mass, one scalar per block ([`sparse::MassBlocks`]); empty where `mass_blocks` is set.
+    /// Mass, one scalar per block ([`sparse::MassBlocks`]); empty where `mass_diagonal` is set.
     pub m: &'a [f64],
     /// The mass as diagonal blocks instead, where it is not `m_ab I3`: a symmetry class's
     /// reduced mass ([`symmetric`]) differs by component.
@@ -265,7 +265,7 @@ impl<'a> Operators<'a> {
     }
 
     /// A deterministic random block of `b` columns ([`random_block`]) with the absent DOFs'
-    /// rows zeroed: where every Krylov basis and LOBPCG search starts.
+    /// rows zeroed: where every Lanczos basis starts, and what refills it after a breakdown.
     pub(crate) fn random_block(&self, b: usize, seed: u64) -> Mat<f64> {
         let mut x = random_block(self.dofs(), b, seed);
         for &i in self.absent {

@@ -4,61 +4,16 @@
 //! different operator), and both must return M-orthonormal vectors whose recomputed residuals
 //! (Jin et al. 2022, eq. 6) meet the tolerance.
 
-use modalforge::eigen::{self, EigenOptions, EigenSolution, ModeCount, SolverKind};
-use modalforge::fem::sparse::{self, RowBlock};
+use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::VoxelGrid;
 
 mod common;
+use common::eigen::{identities, options, TOL};
 use common::two_cubes;
 
 const NU: f64 = 0.3;
-const TOL: f64 = 1e-9;
-
-fn options(count: ModeCount) -> EigenOptions {
-    EigenOptions {
-        count,
-        tolerance: TOL,
-        ..Default::default()
-    }
-}
-
-/// Recomputes `max_j ||K v - lambda M v|| / ((||K|| + lambda ||M||) ||v||)` and
-/// `max |V^T M V - I|` from the returned vectors alone.
-fn identities(model: &FemModel, sol: &EigenSolution) -> (f64, f64) {
-    let n = model.dofs();
-    let k_norm = sparse::norm_inf(&model.pattern, &model.k);
-    let m_norm = sparse::mass_norm_inf(&model.pattern, &model.m);
-    let cols = sol.vectors.ncols();
-    let mut mv = Vec::with_capacity(cols);
-    let mut worst_res = 0.0f64;
-    for j in 0..cols {
-        let v: Vec<f64> = (0..n).map(|i| sol.vectors[(i, j)]).collect();
-        let (mut kv, mut m) = (vec![0.0; n], vec![0.0; n]);
-        sparse::spmm(&model.pattern, &model.k, &v, &mut kv, RowBlock::dense(1));
-        sparse::spmm_mass(&model.pattern, &model.m, &v, &mut m, RowBlock::dense(1));
-        let l = sol.eigenvalues[j];
-        let r = kv
-            .iter()
-            .zip(&m)
-            .map(|(a, b)| (a - l * b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let vn = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        worst_res = worst_res.max(r / ((k_norm + l * m_norm) * vn));
-        mv.push(m);
-    }
-    let mut worst_orth = 0.0f64;
-    for a in 0..cols {
-        for (b, mb) in mv.iter().enumerate() {
-            let dot: f64 = (0..n).map(|i| sol.vectors[(i, a)] * mb[i]).sum();
-            let want = if a == b { 1.0 } else { 0.0 };
-            worst_orth = worst_orth.max((dot - want).abs());
-        }
-    }
-    (worst_res, worst_orth)
-}
 
 fn bowl(d: f64) -> VoxelGrid {
     Primitive::Bowl {

@@ -2,27 +2,18 @@
 //! objects solved whole: the class-by-class answer must be the whole model's lowest modes
 //! (none missed, none doubled: a bowl's paired modes fall in two classes, a sphere's triplets
 //! in three), with residuals (Jin et al. 2022, eq. 6) and M-orthonormality recomputed on the
-//! whole `K` and `M` from the lifted vectors alone.
+//! whole `K` and `M` from the lifted vectors alone (`common::eigen::identities`).
 
 use modalforge::eigen::symmetric::{self, Mirrors};
-use modalforge::eigen::{
-    self, lanczos, EigenOptions, ModeCount, Operators, SolverKind, Stop, Which,
-};
+use modalforge::eigen::{self, lanczos, ModeCount, SolverKind, Stop};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::shape::primitives::Primitive;
 use modalforge::shape::VoxelGrid;
 
+mod common;
+use common::eigen::{identities, options, TOL};
+
 const NU: f64 = 0.24;
-const TOL: f64 = 1e-9;
-
-fn options(count: ModeCount) -> EigenOptions {
-    EigenOptions {
-        count,
-        tolerance: TOL,
-        ..Default::default()
-    }
-}
-
 fn bowl() -> VoxelGrid {
     Primitive::Bowl {
         diameter: 16.0,
@@ -30,25 +21,6 @@ fn bowl() -> VoxelGrid {
     }
     .rasterize(1.0, 1.0)
     .unwrap()
-}
-
-/// `(max residual, max |V^T M V - I|)` recomputed on the whole model.
-fn identities(model: &FemModel, sol: &eigen::EigenSolution) -> (f64, f64) {
-    let ops = Operators::new(model);
-    let residual = ops
-        .block_residuals(&sol.eigenvalues, sol.vectors.as_ref())
-        .into_iter()
-        .fold(0.0, f64::max);
-    let mv = ops.apply_block(Which::M, sol.vectors.as_ref());
-    let gram = sol.vectors.transpose() * &mv;
-    let mut orth = 0.0f64;
-    for i in 0..gram.nrows() {
-        for j in 0..gram.ncols() {
-            let want = if i == j { 1.0 } else { 0.0 };
-            orth = orth.max((gram[(i, j)] - want).abs());
-        }
-    }
-    (residual, orth)
 }
 
 /// The default bowl (two mirrors; partial voxels, so its fills are symmetric only to the

@@ -407,8 +407,9 @@ pub(crate) struct FirstRoom {
     pub below: usize,
 }
 
-/// [`run_until`] with the first room given: a symmetry class knows which rigid modes it holds
-/// and about how many modes lie below its bound ([`super::symmetric`]).
+/// [`run_until`] with the first room given: a symmetry class is small, so its basis needs more
+/// slack than six rigid modes' to avoid a restart, and it knows about how many modes lie below
+/// its bound ([`super::symmetric`]).
 pub(crate) fn run_with_room(
     ops: &Operators,
     llt: &mut ShiftedCholesky,

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod alloc;
+pub mod eigen;
 pub mod smooth;
 pub mod soak;
 
