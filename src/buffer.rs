@@ -1,12 +1,22 @@
-//! Large zeroed work buffers for the eigensolvers, backed by transparent huge pages.
+//! Large work buffers for the eigensolvers: zeroed ones backed by transparent huge pages, and
+//! buffers kept from one solve to the next.
 //!
-//! Where it sits: under [`crate::eigen`] (LOBPCG blocks, multigrid scratch), which allocate a few
-//! hundred MB of vectors per solve. Zeroed memory arrives untouched from the kernel and is
-//! mapped page by page on first write; with 4 KB pages a 32^3 solve takes ~140k page faults,
-//! about a fifth of its time on a virtual machine, and its sparse products miss the TLB. Asking
-//! for 2 MB pages (`MADV_HUGEPAGE`, honoured where transparent huge pages are set to `madvise`
-//! or `always`) cuts both. Elsewhere, or where the kernel declines, the buffer is an ordinary
-//! zeroed vector.
+//! Where it sits: under [`crate::eigen`] (LOBPCG blocks, multigrid scratch, Cholesky factors),
+//! which allocate a few MB to a few hundred MB per solve. Fresh memory arrives untouched from
+//! the kernel and is mapped page by page on first write, at ~5 us a 4 KB page on the virtual
+//! machines here: a 32^3 solve takes ~140k page faults, about a fifth of its time, and its
+//! sparse products miss the TLB. Two remedies:
+//! - [`zeroed`] asks for 2 MB pages (`MADV_HUGEPAGE`, honoured where transparent huge pages are
+//!   set to `madvise` or `always`) for buffers of 4 MB and more. Elsewhere, or where the kernel
+//!   declines, the buffer is an ordinary zeroed vector.
+//! - [`take`] and [`recycle`] keep a few buffers between solves ([`KEPT_BYTES`] at most):
+//!   the allocator hands large blocks back to the kernel when they
+//!   are freed (glibc maps anything over its threshold afresh), so a worker that solves edit
+//!   after edit faulted in its factor and scratch anew each time: ~6k faults (~25 ms of system
+//!   time) of the default object's 150 ms cold solve. A Cholesky factor's values and its
+//!   factorisation scratch go back to the pool when it is dropped.
+
+use std::sync::{Mutex, PoisonError};
 
 /// Buffers smaller than this are left alone (their first touch is cheap).
 const MIN_ADVISED_BYTES: usize = 4 << 20;
@@ -45,6 +55,178 @@ fn advise_huge_pages<T>(v: &[T]) {
 #[cfg(not(target_os = "linux"))]
 fn advise_huge_pages<T>(_: &[T]) {}
 
+/// Most bytes of buffers the process keeps for each element type between solves: the default
+/// object's three class factors, their scratch and Lanczos bases are ~20 MB; a larger object's
+/// whole factor may not fit, and is then freed as before.
+pub const KEPT_BYTES: usize = 64 << 20;
+
+/// Most buffers the process keeps for each element type.
+const KEPT_COUNT: usize = 12;
+
+/// Buffers smaller than this are not kept (their first touch is cheap).
+const MIN_KEPT_BYTES: usize = 64 << 10;
+
+/// Buffers kept for a later solve, oldest first. One pool for the process, not one per
+/// thread: a plugin runs a worker thread per instance, and its memory stays bounded however
+/// many instances a session holds.
+pub struct Pool<T> {
+    buffers: Vec<Vec<T>>,
+}
+
+impl<T> Pool<T> {
+    const fn new() -> Self {
+        Pool {
+            buffers: Vec::new(),
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        self.buffers
+            .iter()
+            .map(|b| b.capacity() * std::mem::size_of::<T>())
+            .sum()
+    }
+
+    /// The smallest kept buffer with room for `capacity` elements, emptied.
+    fn take(&mut self, capacity: usize) -> Option<Vec<T>> {
+        let best = (self.buffers.iter().enumerate())
+            .filter(|(_, b)| b.capacity() >= capacity)
+            .min_by_key(|(_, b)| b.capacity())
+            .map(|(i, _)| i)?;
+        let mut v = self.buffers.remove(best);
+        v.clear();
+        Some(v)
+    }
+
+    /// Keeps `v`, dropping the oldest beyond [`KEPT_BYTES`] or [`KEPT_COUNT`]; a buffer
+    /// under [`MIN_KEPT_BYTES`] or over [`KEPT_BYTES`] is dropped at once.
+    fn keep(&mut self, v: Vec<T>) {
+        let bytes = v.capacity() * std::mem::size_of::<T>();
+        if !(MIN_KEPT_BYTES..=KEPT_BYTES).contains(&bytes) {
+            return;
+        }
+        self.buffers.push(v);
+        while self.buffers.len() > KEPT_COUNT || self.bytes() > KEPT_BYTES {
+            self.buffers.remove(0);
+        }
+    }
+}
+
+/// Element types with a pool of kept buffers.
+pub trait Recycled: Copy + 'static {
+    /// The pool for the type.
+    fn pool() -> &'static Mutex<Pool<Self>>;
+
+    /// Runs `f` on the pool (a panic while it was held left nothing half-done that matters:
+    /// the buffers are only memory).
+    fn with_pool<R>(f: impl FnOnce(&mut Pool<Self>) -> R) -> R {
+        f(&mut Self::pool().lock().unwrap_or_else(PoisonError::into_inner))
+    }
+}
+
+impl Recycled for f64 {
+    fn pool() -> &'static Mutex<Pool<Self>> {
+        static POOL: Mutex<Pool<f64>> = Mutex::new(Pool::new());
+        &POOL
+    }
+}
+
+impl Recycled for usize {
+    fn pool() -> &'static Mutex<Pool<Self>> {
+        static POOL: Mutex<Pool<usize>> = Mutex::new(Pool::new());
+        &POOL
+    }
+}
+
+/// An empty vector with room for at least `capacity` elements where the pool keeps one that
+/// large (the smallest such), else an empty vector without room (the caller reserves, and
+/// may use `try_reserve` to report a failure). Its memory may have been written before: fill
+/// it before reading.
+pub fn take<T: Recycled>(capacity: usize) -> Vec<T> {
+    T::with_pool(|pool| pool.take(capacity)).unwrap_or_default()
+}
+
+/// Keeps `v`'s memory for a later [`take`], dropping the oldest kept buffers beyond
+/// [`KEPT_BYTES`] or [`KEPT_COUNT`]. Small buffers are freed.
+pub fn recycle<T: Recycled>(v: Vec<T>) {
+    T::with_pool(|pool| pool.keep(v));
+}
+
+/// Frees every kept buffer.
+pub fn free_kept() {
+    f64::with_pool(|pool| pool.buffers.clear());
+    usize::with_pool(|pool| pool.buffers.clear());
+}
+
+/// A column-major `nrows x ncols` block of zeros in a kept buffer ([`take`]), handed back to
+/// the pool when dropped: the Lanczos basis, rebuilt per solve. Like a `faer::Mat`, each
+/// column starts on a 64-byte boundary (the matrix products' loads are aligned).
+pub struct KeptColumns {
+    values: Vec<f64>,
+    /// Where the first column starts in `values`.
+    offset: usize,
+    nrows: usize,
+    ncols: usize,
+    col_stride: usize,
+}
+
+/// `f64`s in 64 bytes.
+const ALIGN_F64S: usize = 8;
+
+impl KeptColumns {
+    /// `nrows x ncols` zeros.
+    pub fn zeros(nrows: usize, ncols: usize) -> Self {
+        let col_stride = nrows.next_multiple_of(ALIGN_F64S);
+        let len = col_stride * ncols + ALIGN_F64S;
+        let mut values = take(len);
+        values.resize(len, 0.0);
+        let misaligned = (values.as_ptr() as usize / std::mem::size_of::<f64>()) % ALIGN_F64S;
+        KeptColumns {
+            values,
+            offset: (ALIGN_F64S - misaligned) % ALIGN_F64S,
+            nrows,
+            ncols,
+            col_stride,
+        }
+    }
+
+    /// Rows.
+    pub fn nrows(&self) -> usize {
+        self.nrows
+    }
+
+    /// Columns.
+    pub fn ncols(&self) -> usize {
+        self.ncols
+    }
+
+    /// The block, to read.
+    pub fn as_ref(&self) -> faer::MatRef<'_, f64> {
+        faer::MatRef::from_column_major_slice_with_stride(
+            &self.values[self.offset..],
+            self.nrows,
+            self.ncols,
+            self.col_stride,
+        )
+    }
+
+    /// The block, to write.
+    pub fn as_mut(&mut self) -> faer::MatMut<'_, f64> {
+        faer::MatMut::from_column_major_slice_with_stride_mut(
+            &mut self.values[self.offset..],
+            self.nrows,
+            self.ncols,
+            self.col_stride,
+        )
+    }
+}
+
+impl Drop for KeptColumns {
+    fn drop(&mut self) {
+        recycle(std::mem::take(&mut self.values));
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,6 +239,63 @@ mod tests {
             assert!(v.iter().all(|&x| x == 0.0));
             v.iter_mut().enumerate().for_each(|(i, x)| *x = i as f64);
             assert!(v.iter().enumerate().all(|(i, &x)| x == i as f64));
+        }
+    }
+
+    #[test]
+    fn kept_buffers_are_reused_smallest_first_and_bounded() {
+        // A pool of its own (the process's is shared with other tests' solves).
+        let mut pool = Pool::new();
+        let len = MIN_KEPT_BYTES / 8;
+        let (small, large) = (vec![1.0f64; len], vec![2.0f64; 4 * len]);
+        let (small_at, large_at) = (small.as_ptr(), large.as_ptr());
+        pool.keep(large);
+        pool.keep(small);
+        pool.keep(vec![3.0f64; 10]); // too small to keep
+                                     // The smallest that fits, emptied; then the next; then none.
+        let a = pool.take(len / 2).unwrap();
+        assert_eq!((a.as_ptr(), a.len()), (small_at, 0));
+        let b = pool.take(len / 2).unwrap();
+        assert_eq!((b.as_ptr(), b.len()), (large_at, 0));
+        assert!(pool.take(1).is_none());
+        // Bounded by count and bytes, oldest dropped first.
+        // (Told apart by capacity: a freed buffer's address may come back.)
+        pool.keep(Vec::<f64>::with_capacity(len + 1));
+        for _ in 0..KEPT_COUNT + 2 {
+            pool.keep(Vec::<f64>::with_capacity(len));
+        }
+        assert_eq!(pool.buffers.len(), KEPT_COUNT);
+        assert!(pool.buffers.iter().all(|b| b.capacity() == len));
+        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 - len));
+        assert!(pool.bytes() <= KEPT_BYTES);
+        assert_eq!(
+            pool.buffers.len(),
+            2,
+            "the budget keeps the newest that fit"
+        );
+        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1)); // over the budget alone
+        assert!(pool.bytes() <= KEPT_BYTES);
+        // The process's pools, through the public functions.
+        let v = take::<usize>(len);
+        recycle(v);
+    }
+
+    #[test]
+    fn kept_columns_are_zeros_of_their_shape() {
+        let mut c = KeptColumns::zeros(5, 3);
+        assert_eq!((c.nrows(), c.ncols()), (5, 3));
+        c.as_mut()[(4, 2)] = 1.0;
+        assert_eq!(c.as_ref()[(4, 2)], 1.0);
+        drop(c);
+        // Memory written before comes back as zeros.
+        let c = KeptColumns::zeros(4, 2);
+        assert!((0..4).all(|i| (0..2).all(|j| c.as_ref()[(i, j)] == 0.0)));
+        for j in 0..2 {
+            assert_eq!(
+                c.as_ref().col(j).as_ptr() as usize % 64,
+                0,
+                "column {j} aligned"
+            );
         }
     }
 }

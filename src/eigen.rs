@@ -174,6 +174,13 @@ pub struct EigenSolution {
     pub rigid_vectors: Mat<f64>,
 }
 
+/// Frees the work buffers the solvers keep between solves (Cholesky factors, their scratch,
+/// Lanczos bases: 64 MB at most for each element type). Nothing needs to call it: the next solve reuses them. A memory measurement that must
+/// not depend on which objects were solved last does (the soak).
+pub fn free_kept_buffers() {
+    crate::buffer::free_kept();
+}
+
 /// Guard vectors a solution keeps for warm starts, for `need` wanted pairs (rigid included).
 pub fn warm_guard(need: usize) -> usize {
     (need / 2).max(8)

@@ -6,11 +6,12 @@
 mod rows;
 
 use super::EigenError;
+use crate::buffer;
 use crate::fem::memo::Memo;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::sparse::RowBlock;
 use crate::fem::{ordering, sparse, FemModel};
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::MemStack;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
@@ -173,25 +174,35 @@ impl ShiftedCholesky {
                 MAX_FACTOR_BYTES >> 30
             )));
         }
-        let mut values = Vec::new();
-        values.try_reserve_exact(symbolic.len_val()).map_err(|_| {
-            EigenError::Factorization("out of memory for the Cholesky factor".into())
-        })?;
+        let out_of_memory =
+            |_| EigenError::Factorization("out of memory for the Cholesky factor".into());
+        // The values and the scratch come from the thread's kept buffers where it has them
+        // (`crate::buffer`: a worker's next solve does not fault them in again).
+        let mut values = buffer::take::<f64>(symbolic.len_val());
+        values
+            .try_reserve_exact(symbolic.len_val())
+            .map_err(out_of_memory)?;
         values.resize(symbolic.len_val(), 0.0);
-        let mut fac_scratch =
-            MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()));
-        symbolic
-            .factorize_numeric_llt(
-                &mut values,
-                a.as_ref(),
-                Side::Upper,
-                Default::default(),
-                par,
-                MemStack::new(&mut fac_scratch),
-                Default::default(),
-            )
-            .map_err(|e| fail(&e))?;
-        drop(fac_scratch);
+        let scratch_req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
+        let scratch_len = scratch_req.unaligned_bytes_required().div_ceil(8);
+        let mut fac_scratch = buffer::take::<f64>(scratch_len);
+        fac_scratch
+            .try_reserve_exact(scratch_len)
+            .map_err(out_of_memory)?;
+        let factored = symbolic.factorize_numeric_llt(
+            &mut values,
+            a.as_ref(),
+            Side::Upper,
+            Default::default(),
+            par,
+            MemStack::new_any(&mut fac_scratch.spare_capacity_mut()[..scratch_len]),
+            Default::default(),
+        );
+        buffer::recycle(fac_scratch);
+        let (a_pattern, a_values) = a.into_parts();
+        buffer::recycle(a_values);
+        buffer::recycle(a_pattern.into_parts().4);
+        factored.map_err(|e| fail(&e))?;
         let SymbolicCholeskyRaw::Supernodal(supernodal) = symbolic.raw() else {
             return Err(EigenError::Factorization(
                 "faer returned a simplicial factor where a supernodal one was asked for".into(),
@@ -210,7 +221,11 @@ impl ShiftedCholesky {
             layout,
             fwd,
             inv,
-            scratch: vec![0.0; n * CHUNK],
+            scratch: {
+                let mut scratch = buffer::take(n * CHUNK);
+                scratch.resize(n * CHUNK, 0.0);
+                scratch
+            },
             #[cfg(test)]
             symbolic: Arc::clone(&symbolic),
         })
@@ -306,6 +321,14 @@ fn chunk_width(left: usize) -> usize {
         .into_iter()
         .find(|&w| w <= left)
         .expect("left >= 1")
+}
+
+/// The values and the solve's scratch go back to the thread's kept buffers.
+impl Drop for ShiftedCholesky {
+    fn drop(&mut self) {
+        buffer::recycle(std::mem::take(&mut self.values));
+        buffer::recycle(std::mem::take(&mut self.scratch));
+    }
 }
 
 impl super::lobpcg::Preconditioner for ShiftedCholesky {

@@ -21,6 +21,7 @@ mod check;
 
 use super::factor::ShiftedCholesky;
 use super::{EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop, Which};
+use crate::buffer::KeptColumns;
 use crate::fem::FemModel;
 use check::{Check, NextBlock, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
@@ -32,17 +33,19 @@ use std::time::Instant;
 pub const SHIFT_RELATIVE: f64 = 1e-6;
 
 /// The growing M-orthonormal basis with `M V` kept beside it.
+/// Its columns live in the thread's kept buffers ([`crate::buffer`]): a worker's next solve
+/// does not fault them in again.
 struct Basis {
-    v: Mat<f64>,
-    mv: Mat<f64>,
+    v: KeptColumns,
+    mv: KeptColumns,
     len: usize,
 }
 
 impl Basis {
     fn new(n: usize, cap: usize) -> Self {
         Basis {
-            v: Mat::zeros(n, cap),
-            mv: Mat::zeros(n, cap),
+            v: KeptColumns::zeros(n, cap),
+            mv: KeptColumns::zeros(n, cap),
             len: 0,
         }
     }
@@ -56,14 +59,14 @@ impl Basis {
             return;
         }
         let n = self.v.nrows();
-        let mut v = Mat::zeros(n, cap);
-        let mut mv = Mat::zeros(n, cap);
+        let mut v = KeptColumns::zeros(n, cap);
+        let mut mv = KeptColumns::zeros(n, cap);
         v.as_mut()
             .get_mut(.., ..self.len)
-            .copy_from(self.v.get(.., ..self.len));
+            .copy_from(self.v.as_ref().get(.., ..self.len));
         mv.as_mut()
             .get_mut(.., ..self.len)
-            .copy_from(self.mv.get(.., ..self.len));
+            .copy_from(self.mv.as_ref().get(.., ..self.len));
         self.v = v;
         self.mv = mv;
     }
@@ -71,8 +74,8 @@ impl Basis {
     /// One classical Gram-Schmidt pass of `w` against the basis columns `cols` in the
     /// M-inner product; returns the coefficients removed (`cols.len() x w.ncols()`).
     fn project_pass(&self, cols: std::ops::Range<usize>, w: &mut Mat<f64>) -> Mat<f64> {
-        let v = self.v.get(.., cols.clone());
-        let mv = self.mv.get(.., cols);
+        let v = self.v.as_ref().get(.., cols.clone());
+        let mv = self.mv.as_ref().get(.., cols);
         // In transposed form (`C^T = W^T (M V)`, `W^T -= C^T V^T`) the small block is the
         // left operand, which the matrix product packs; the basis is read in place.
         let mut ct = Mat::<f64>::zeros(w.ncols(), v.ncols());
@@ -583,7 +586,7 @@ impl Krylov {
         loop {
             checker.stop.check()?;
             let cols = self.fresh.clone();
-            let mut w = self.basis.mv.get(.., cols.clone()).to_owned();
+            let mut w = self.basis.mv.as_ref().get(.., cols.clone()).to_owned();
             llt.solve_in_place(w.as_mut());
             let (c, q, mq, r) = self.orthogonalise(ops, w)?;
             self.h
@@ -675,8 +678,8 @@ impl Krylov {
         let qb = residual.q.ncols();
         let keep_n = (nev + b).min(order.len()).min(self.basis.cap() - 2 * qb);
         let yk = Mat::from_fn(len, keep_n, |i, j| y[(i, order[j])]);
-        let xk = tall_times_small(self.basis.v.get(.., 0..len), yk.as_ref());
-        let mxk = tall_times_small(self.basis.mv.get(.., 0..len), yk.as_ref());
+        let xk = tall_times_small(self.basis.v.as_ref().get(.., 0..len), yk.as_ref());
+        let mxk = tall_times_small(self.basis.mv.as_ref().get(.., 0..len), yk.as_ref());
         // Residual coupling: Op x_j - theta_j x_j = Q (R y_j[last rows]).
         let last = &residual.last;
         let y_last = Mat::from_fn(last.len(), keep_n, |i, j| y[(last.start + i, order[j])]);

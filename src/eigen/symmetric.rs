@@ -47,7 +47,7 @@ use super::{
     SolverKind, Stop,
 };
 use crate::fem::{ordering, FemModel};
-use faer::Mat;
+use faer::{ColMut, ColRef, Mat, MatRef};
 use std::time::Instant;
 
 /// Models below this many DOFs are solved whole: their solve is a few tens of ms, and their
@@ -274,17 +274,36 @@ const BELOW_SHARE: usize = 20;
 /// filled their bases and restarted once; with twelve none did.
 const RIGID_ROOM: usize = 12;
 
-/// A class's answer lifted to the whole model (or mapped onto an image class).
-struct Lifted<'a> {
+/// Where columns of the whole model's answer come from: a class's answer, lifted, and mapped
+/// onto an image class by the swaps `path` (none for the class itself).
+struct Source<'a> {
     solution: &'a EigenSolution,
-    vectors: Mat<f64>,
-    rigid: Mat<f64>,
-    guards: Mat<f64>,
+    lifting: &'a Lifting,
+    path: &'a [usize],
+}
+
+impl Source<'_> {
+    /// Writes class vector `x`, lifted and mapped, into the whole model's column `out`.
+    fn write(&self, mirrors: &Mirrors, x: ColRef<'_, f64>, out: ColMut<'_, f64>) {
+        let out = out
+            .try_as_col_major_mut()
+            .expect("the answer's columns are contiguous")
+            .as_slice_mut();
+        self.lifting.column(x, out);
+        mirrors.map_column(out, self.path);
+    }
+
+    /// Lifts and maps the columns of `x` into `out`'s columns from `at`.
+    fn write_all(&self, mirrors: &Mirrors, x: MatRef<'_, f64>, out: &mut Mat<f64>, at: usize) {
+        for j in 0..x.ncols() {
+            self.write(mirrors, x.col(j), out.col_mut(at + j));
+        }
+    }
 }
 
 /// The whole model's answer from its classes': the lowest pairs of all (or those below the
 /// bound), lifted, the solved classes' and their images'; rigid modes of every class; the next
-/// pairs above as guards.
+/// pairs above as guards. Only the columns kept are lifted, each straight into the answer.
 fn combine(
     mirrors: &Mirrors,
     solved: &[ClassAnswer],
@@ -292,28 +311,28 @@ fn combine(
     timings: SolveTimings,
     iterations: usize,
 ) -> EigenSolution {
-    let mut lifted = Vec::new();
-    for s in solved {
-        let sol = &s.solution;
-        let lifting = Lifting::new(mirrors, s.chi);
-        let own = Lifted {
-            solution: sol,
-            vectors: lifting.apply(sol.vectors.as_ref()),
-            rigid: lifting.apply(sol.rigid_vectors.as_ref()),
-            guards: lifting.apply(sol.guard_vectors.as_ref()),
-        };
+    let liftings: Vec<Lifting> = solved
+        .iter()
+        .map(|s| Lifting::new(mirrors, s.chi))
+        .collect();
+    let mut sources = Vec::new();
+    for (s, lifting) in solved.iter().zip(&liftings) {
+        let solution = &s.solution;
         for path in &s.images {
-            lifted.push(Lifted {
-                solution: sol,
-                vectors: mirrors.image_of(own.vectors.clone(), path),
-                rigid: mirrors.image_of(own.rigid.clone(), path),
-                guards: mirrors.image_of(own.guards.clone(), path),
+            sources.push(Source {
+                solution,
+                lifting,
+                path,
             });
         }
-        lifted.push(own);
+        sources.push(Source {
+            solution,
+            lifting,
+            path: &[],
+        });
     }
-    // (eigenvalue, lifted answer, column, residual)
-    let mut pairs: Vec<(f64, usize, usize, f64)> = lifted
+    // (eigenvalue, source, column, residual)
+    let mut pairs: Vec<(f64, usize, usize, f64)> = sources
         .iter()
         .enumerate()
         .flat_map(|(i, l)| {
@@ -327,57 +346,65 @@ fn combine(
         ModeCount::Below(l) => pairs.iter().take_while(|p| p.0 <= l).count(),
     };
     let n = 3 * mirrors.orbit_of.len();
-    let rigid_modes: usize = lifted.iter().map(|l| l.solution.rigid_modes).sum();
-    let column = |p: &(f64, usize, usize, f64)| lifted[p.1].vectors.col(p.2);
-    let mut guards: Vec<Mat<f64>> = Vec::new();
+    let write_pairs = |pairs: &[(f64, usize, usize, f64)], out: &mut Mat<f64>| {
+        for (j, &(_, i, col, _)) in pairs.iter().enumerate() {
+            let source = &sources[i];
+            source.write(mirrors, source.solution.vectors.col(col), out.col_mut(j));
+        }
+    };
+    let mut vectors = Mat::zeros(n, keep);
+    write_pairs(&pairs[..keep], &mut vectors);
+    // Guards: the next pairs above, then the classes' own guards.
+    let rigid_modes: usize = sources.iter().map(|l| l.solution.rigid_modes).sum();
     let guard_count = warm_guard(rigid_modes + keep);
     let extra = &pairs[keep..pairs.len().min(keep + guard_count)];
-    guards.push(columns_of(n, extra, column));
-    let mut have = extra.len();
-    for l in &lifted {
-        if have >= guard_count {
-            break;
-        }
-        let take = l.guards.ncols().min(guard_count - have);
-        guards.push(l.guards.get(.., 0..take).to_owned());
-        have += take;
+    let from_guards: Vec<usize> = sources
+        .iter()
+        .scan(extra.len(), |have, l| {
+            let take = l.solution.guard_vectors.ncols().min(guard_count - *have);
+            *have += take;
+            Some(take)
+        })
+        .collect();
+    let mut guard_vectors = Mat::zeros(n, extra.len() + from_guards.iter().sum::<usize>());
+    write_pairs(extra, &mut guard_vectors);
+    let mut at = extra.len();
+    for (l, &take) in sources.iter().zip(&from_guards) {
+        l.write_all(
+            mirrors,
+            l.solution.guard_vectors.get(.., 0..take),
+            &mut guard_vectors,
+            at,
+        );
+        at += take;
     }
-    let rigid: Vec<Mat<f64>> = lifted.iter().map(|l| l.rigid.clone()).collect();
+    let mut rigid_vectors = Mat::zeros(
+        n,
+        sources
+            .iter()
+            .map(|l| l.solution.rigid_vectors.ncols())
+            .sum(),
+    );
+    let mut at = 0;
+    for l in &sources {
+        l.write_all(
+            mirrors,
+            l.solution.rigid_vectors.as_ref(),
+            &mut rigid_vectors,
+            at,
+        );
+        at += l.solution.rigid_vectors.ncols();
+    }
     EigenSolution {
         eigenvalues: pairs[..keep].iter().map(|p| p.0).collect(),
-        vectors: columns_of(n, &pairs[..keep], column),
+        vectors,
         residuals: pairs[..keep].iter().map(|p| p.3).collect(),
         rigid_modes,
         timings,
         iterations,
         solver: SolverKind::Lanczos,
         warm_start: false,
-        guard_vectors: concat_columns(n, &guards),
-        rigid_vectors: concat_columns(n, &rigid),
+        guard_vectors,
+        rigid_vectors,
     }
-}
-
-/// The columns `column(pair)` of `pairs`, side by side.
-fn columns_of<'a>(
-    n: usize,
-    pairs: &[(f64, usize, usize, f64)],
-    column: impl Fn(&(f64, usize, usize, f64)) -> faer::ColRef<'a, f64>,
-) -> Mat<f64> {
-    let mut out = Mat::zeros(n, pairs.len());
-    for (j, p) in pairs.iter().enumerate() {
-        out.col_mut(j).copy_from(column(p));
-    }
-    out
-}
-
-/// The columns of `parts`, side by side.
-fn concat_columns(n: usize, parts: &[Mat<f64>]) -> Mat<f64> {
-    let total = parts.iter().map(|p| p.ncols()).sum();
-    let mut out = Mat::zeros(n, total);
-    let mut at = 0;
-    for p in parts {
-        out.as_mut().get_mut(.., at..at + p.ncols()).copy_from(p);
-        at += p.ncols();
-    }
-    out
 }

@@ -165,9 +165,22 @@ pub fn shifted_upper_csc(
     shift: f64,
 ) -> SparseColMat<usize, f64> {
     let n = pattern.nodes();
+    // Entries in the upper triangle: 9 a block above the diagonal, 6 a diagonal block. The
+    // entries come from the thread's kept buffers (`crate::buffer`), and go back there once
+    // the factorisation has read them.
+    let entries = (0..n)
+        .map(|a| {
+            let row = &pattern.col[pattern.row_ptr[a]..pattern.row_ptr[a + 1]];
+            let upper = row.partition_point(|&b| (b as usize) <= a);
+            let diagonal = usize::from(upper > 0 && row[upper - 1] as usize == a);
+            9 * upper - 3 * diagonal
+        })
+        .sum::<usize>();
     let mut col_ptr = Vec::with_capacity(3 * n + 1);
-    let mut row_idx = Vec::new();
-    let mut val = Vec::new();
+    let mut row_idx = crate::buffer::take(entries);
+    let mut val = crate::buffer::take(entries);
+    row_idx.reserve_exact(entries);
+    val.reserve_exact(entries);
     col_ptr.push(0);
     for a in 0..n {
         for c in 0..3 {

@@ -351,6 +351,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
     let mut next_edit_block = 0u64;
     let mut solves_seen = 0u64;
     let (allocs0, frees0) = (alloc::allocations(), alloc::frees());
+    modalforge::eigen::free_kept_buffers();
     report.heap_start_bytes = alloc::live_bytes();
     report.rss_start_bytes = resident_bytes();
     let start = Instant::now();
@@ -498,6 +499,7 @@ pub fn run(seconds: f64, voices: usize, seed: u64, realtime: bool) -> SoakReport
         control.request(request(first.clone()));
         settle(&mut audio, &control, &mut out);
     }
+    modalforge::eigen::free_kept_buffers();
     report.heap_end_bytes = alloc::live_bytes();
     report.rss_end_bytes = resident_bytes();
     times_us.sort_by(f32::total_cmp);

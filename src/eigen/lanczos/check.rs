@@ -230,7 +230,7 @@ impl RitzCheck<'_> {
         let width = (check + super::super::warm_guard(self.nev)).min(order.len());
         let y = ritz.y.as_ref().expect("verify needs the full eigenvectors");
         let ysel = Mat::from_fn(len, width, |i, j| y[(i, order[j])]);
-        let x = tall_times_small(basis.v.get(.., 0..len), ysel.as_ref());
+        let x = tall_times_small(basis.v.as_ref().get(.., 0..len), ysel.as_ref());
         let lambdas: Vec<f64> = (0..check).map(|j| ritz.lambda(self.shift, j)).collect();
         let mut res: Vec<f64> = (0..check)
             .map(|j| {

@@ -186,9 +186,17 @@ impl Mirrors {
         groups
     }
 
-    /// Whole-model vectors of class `group[0]` mapped onto class `member` by its swaps.
-    pub(super) fn image_of(&self, x: Mat<f64>, path: &[usize]) -> Mat<f64> {
-        path.iter().fold(x, |x, &i| self.swaps[i].apply(&x))
+    /// Maps a whole-model vector of class `group[0]` onto class `member` by its swaps `path`,
+    /// in place.
+    pub(super) fn map_column(&self, x: &mut [f64], path: &[usize]) {
+        if path.is_empty() {
+            return;
+        }
+        let mut image = vec![0.0; x.len()];
+        for &i in path {
+            self.swaps[i].apply(x, &mut image);
+            x.copy_from_slice(&image);
+        }
     }
 
     /// Whether the DOF `c` of orbit `o` exists in class `chi`: every mirror that fixes the
@@ -314,12 +322,20 @@ impl Lifting {
     pub(super) fn apply(&self, x: faer::MatRef<'_, f64>) -> Mat<f64> {
         let mut out = Mat::zeros(self.0.len(), x.ncols());
         for j in 0..x.ncols() {
-            let (from, to) = (x.col(j), out.col_mut(j));
-            for (v, &(i, w)) in to.iter_mut().zip(&self.0) {
-                *v = w * from[i];
-            }
+            let to = out
+                .col_mut(j)
+                .try_as_col_major_mut()
+                .expect("a fresh matrix's column");
+            self.column(x.col(j), to.as_slice_mut());
         }
         out
+    }
+
+    /// The whole model's vector `out` of class vector `x`.
+    pub(super) fn column(&self, x: faer::ColRef<'_, f64>, out: &mut [f64]) {
+        for (v, &(i, w)) in out.iter_mut().zip(&self.0) {
+            *v = w * x[i];
+        }
     }
 }
 
@@ -339,18 +355,14 @@ impl Swap {
         (chi & !(1 << a) & !(1 << b)) | (ba << b) | (bb << a)
     }
 
-    /// The images of whole-model vectors `x`: `y(map q)[to c] = x(q)[c]`.
-    fn apply(&self, x: &Mat<f64>) -> Mat<f64> {
+    /// The image `y` of a whole-model vector `x`: `y(map q)[to c] = x(q)[c]`.
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
         let comp = Components::swap(self.axes.0, self.axes.1);
-        let mut y = Mat::zeros(x.nrows(), x.ncols());
-        for j in 0..x.ncols() {
-            for (q, &image) in self.map.iter().enumerate() {
-                for c in 0..3 {
-                    y[(3 * image as usize + comp.to[c], j)] = x[(3 * q + c, j)];
-                }
+        for (q, &image) in self.map.iter().enumerate() {
+            for c in 0..3 {
+                y[3 * image as usize + comp.to[c]] = x[3 * q + c];
             }
         }
-        y
     }
 }
 
