@@ -37,10 +37,15 @@ def main(folder):
         ours = np.array([float(v) for v in row["eigenvalues"].split()])
         want = modes + 6  # the rigid modes come first
         best = None
+        # The best of three runs under 10k DOFs, as ours (REPEATED_BELOW_DOFS in
+        # benches/interactive.rs).
+        runs = 3 if k.shape[0] < 10_000 else 1
         for tol in (1e-6, 1e-9, 0):
-            t = time.perf_counter()
-            vals, vecs = sla.eigsh(k, k=want, M=m, sigma=shift, which="LM", tol=tol)
-            ms = (time.perf_counter() - t) * 1e3
+            ms = float("inf")
+            for _ in range(runs):
+                t = time.perf_counter()
+                vals, vecs = sla.eigsh(k, k=want, M=m, sigma=shift, which="LM", tol=tol)
+                ms = min(ms, (time.perf_counter() - t) * 1e3)
             order = np.argsort(vals)
             vals, vecs = vals[order], vecs[:, order]
             res = residuals(k, m, vals, vecs)

@@ -24,13 +24,20 @@ fn bowl() -> VoxelGrid {
 }
 
 /// The default bowl (two mirrors; partial voxels, so its fills are symmetric only to the
-/// rounding of their refinement for hex27x2) and a solid sphere (three mirrors), each by
-/// classes and whole.
+/// rounding of their refinement for hex27x2), a solid sphere and a small bar (three mirrors),
+/// each by classes and whole.
 #[test]
 fn classes_give_the_whole_model_s_lowest_modes() {
     let sphere = Primitive::Sphere { diameter: 12.0 }
         .rasterize(1.0, 1.0)
         .unwrap();
+    let small_bar = Primitive::Bar {
+        length: 30.0,
+        width: 3.0,
+        height: 3.0,
+    }
+    .rasterize(1.0, 1.0)
+    .unwrap();
     // (name, grid, element, modes, mirrors, swaps of mirrored axes): the bowl's x-y swap makes
     // its class odd in y the image of the one odd in x; the sphere's swaps leave four of its
     // eight classes to solve.
@@ -48,6 +55,8 @@ fn classes_give_the_whole_model_s_lowest_modes() {
             bowl_swap,
         ),
         ("sphere hex8i", sphere, hex8i, 30, 0b111, all_swaps),
+        // 1.5k DOFs, just over `MIN_DOFS`: eight classes of ~190 DOFs for 60 modes.
+        ("bar hex8i", small_bar, hex8i, 60, 0b111, vec![(1, 2)]),
     ];
     for (name, grid, kind, modes, axes, swaps) in cases {
         let model = FemModel::assemble(&grid, kind, NU).unwrap();
