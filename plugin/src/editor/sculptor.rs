@@ -29,7 +29,8 @@ pub struct Sculptor {
     redo: Vec<VoxelGrid>,
     /// Brush radius in voxels (0 = one voxel).
     pub brush_radius: usize,
-    /// Mirror edits across the box's centre plane normal to x, y, z.
+    /// Mirror edits across the object's centre plane normal to x, y, z (the middle of its
+    /// bounding box, as the stroke finds it).
     pub mirror: [bool; 3],
 }
 
@@ -118,10 +119,17 @@ impl Sculptor {
     /// mirror images; one undo step. Painted voxels become full (or empty), partial ones too.
     /// Cells outside the box are skipped. Removing the last voxel is refused (an empty object
     /// cannot be solved). Returns whether anything changed.
+    ///
+    /// Mirror images are taken across the object's own centre planes, not the box's: an object
+    /// whose extent and the box's differ in parity sits half a voxel off the box's centre, and
+    /// strokes mirrored across the box's planes would break the object's symmetry, which makes
+    /// its exact modes several times slower to solve (`eigen::symmetric`).
     pub fn paint(&mut self, cell: [i64; 3], solid: bool) -> bool {
         let before = self.cells.clone();
         let r = self.brush_radius as i64;
-        let n = BOX_SIDE as i64;
+        // lo + hi: twice the centre, so an image is `lo + hi - c` (an object always has a voxel).
+        let (lo, dims) = self.bounds().unwrap_or(([0; 3], [BOX_SIDE; 3]));
+        let twice_centre: [i64; 3] = std::array::from_fn(|a| 2 * lo[a] + dims[a] as i64 - 1);
         let mut centres = vec![cell];
         for a in 0..3 {
             if self.mirror[a] {
@@ -129,7 +137,7 @@ impl Sculptor {
                     .iter()
                     .map(|c| {
                         let mut m = *c;
-                        m[a] = n - 1 - c[a];
+                        m[a] = twice_centre[a] - c[a];
                         m
                     })
                     .collect();

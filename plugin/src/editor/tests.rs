@@ -120,6 +120,17 @@ fn mirror_symmetry_and_the_last_voxel() {
         assert!(s.get(c), "{c:?}");
     }
     assert_eq!(s.count(), 8 + 4);
+    // An object of odd extent sits half a voxel off the box's centre: the images are taken
+    // across its own planes, so a mirrored stroke keeps it symmetric.
+    let mut odd = Sculptor::new(&block([3, 3, 3])).unwrap();
+    odd.mirror = [true, false, false];
+    let (lo, dims) = odd.bounds().unwrap();
+    assert_eq!((lo[0], dims[0]), (14, 3), "placed at (32 - 3) / 2");
+    assert!(odd.paint([13, 15, 15], true));
+    assert!(odd.get([13, 15, 15]) && odd.get([17, 15, 15]), "images across x = 15");
+    assert_eq!(odd.count(), 27 + 2);
+    let (lo, dims) = odd.bounds().unwrap();
+    assert_eq!((lo[0], dims[0]), (13, 5), "still centred on x = 15");
     // Removing everything is refused: an empty object cannot be solved.
     let mut one = Sculptor::new(&block([1, 1, 1])).unwrap();
     let (lo, _) = one.bounds().unwrap();
