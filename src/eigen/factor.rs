@@ -176,7 +176,7 @@ impl ShiftedCholesky {
         }
         let out_of_memory =
             |_| EigenError::Factorization("out of memory for the Cholesky factor".into());
-        // The values and the scratch come from the thread's kept buffers where it has them
+        // The values and the scratch come from the process's kept buffers where it has them
         // (`crate::buffer`: a worker's next solve does not fault them in again).
         let mut values = buffer::take::<f64>(symbolic.len_val());
         values
@@ -323,7 +323,7 @@ fn chunk_width(left: usize) -> usize {
         .expect("left >= 1")
 }
 
-/// The values and the solve's scratch go back to the thread's kept buffers.
+/// The values and the solve's scratch go back to the process's kept buffers.
 impl Drop for ShiftedCholesky {
     fn drop(&mut self) {
         buffer::recycle(std::mem::take(&mut self.values));

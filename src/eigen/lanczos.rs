@@ -33,7 +33,7 @@ use std::time::Instant;
 pub const SHIFT_RELATIVE: f64 = 1e-6;
 
 /// The growing M-orthonormal basis with `M V` kept beside it.
-/// Its columns live in the thread's kept buffers ([`crate::buffer`]): a worker's next solve
+/// Its columns live in the process's kept buffers ([`crate::buffer`]): a worker's next solve
 /// does not fault them in again.
 struct Basis {
     v: KeptColumns,

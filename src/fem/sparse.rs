@@ -166,7 +166,7 @@ pub fn shifted_upper_csc(
 ) -> SparseColMat<usize, f64> {
     let n = pattern.nodes();
     // Entries in the upper triangle: 9 a block above the diagonal, 6 a diagonal block. The
-    // entries come from the thread's kept buffers (`crate::buffer`), and go back there once
+    // entries come from the process's kept buffers (`crate::buffer`), and go back there once
     // the factorisation has read them.
     let entries = (0..n)
         .map(|a| {
