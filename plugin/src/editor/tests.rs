@@ -127,7 +127,10 @@ fn mirror_symmetry_and_the_last_voxel() {
     let (lo, dims) = odd.bounds().unwrap();
     assert_eq!((lo[0], dims[0]), (14, 3), "placed at (32 - 3) / 2");
     assert!(odd.paint([13, 15, 15], true));
-    assert!(odd.get([13, 15, 15]) && odd.get([17, 15, 15]), "images across x = 15");
+    assert!(
+        odd.get([13, 15, 15]) && odd.get([17, 15, 15]),
+        "images across x = 15"
+    );
     assert_eq!(odd.count(), 27 + 2);
     let (lo, dims) = odd.bounds().unwrap();
     assert_eq!((lo[0], dims[0]), (13, 5), "still centred on x = 15");
