@@ -464,8 +464,10 @@ pub fn solve_until(
         SolverKind::Lobpcg if solver == SolverKind::Auto => {
             if model.dofs() <= AUTO_CLASSES_MAX_DOFS {
                 match symmetric::solve_until(model, options, stop) {
-                    None | Some(Err(EigenError::Factorization(_))) => {}
-                    Some(answer) => return answer,
+                    Some(Ok(answer)) => return Ok(answer),
+                    Some(Err(EigenError::Interrupted)) => return Err(EigenError::Interrupted),
+                    // Not symmetric, or its classes failed (a factor refused): LOBPCG.
+                    _ => {}
                 }
             }
             match lobpcg::solve_until(model, options, stop) {

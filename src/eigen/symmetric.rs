@@ -295,12 +295,21 @@ impl Source<'_> {
         self.lifting.column(x, out);
         mirrors.map_column(out, self.path);
     }
+}
 
-    /// Lifts and maps the columns of `x` into `out`'s columns from `at`.
-    fn write_all(&self, mirrors: &Mirrors, x: MatRef<'_, f64>, out: &mut Mat<f64>, at: usize) {
+/// Lifts and maps each source's block of class vectors into consecutive columns of `out`, from
+/// column `at`.
+fn write_blocks<'a>(
+    mirrors: &Mirrors,
+    out: &mut Mat<f64>,
+    mut at: usize,
+    blocks: impl Iterator<Item = (&'a Source<'a>, MatRef<'a, f64>)>,
+) {
+    for (source, x) in blocks {
         for j in 0..x.ncols() {
-            self.write(mirrors, x.col(j), out.col_mut(at + j));
+            source.write(mirrors, x.col(j), out.col_mut(at + j));
         }
+        at += x.ncols();
     }
 }
 
@@ -371,33 +380,18 @@ fn combine(
         .collect();
     let mut guard_vectors = Mat::zeros(n, extra.len() + from_guards.iter().sum::<usize>());
     write_pairs(extra, &mut guard_vectors);
-    let mut at = extra.len();
-    for (l, &take) in sources.iter().zip(&from_guards) {
-        l.write_all(
-            mirrors,
-            l.solution.guard_vectors.get(.., 0..take),
-            &mut guard_vectors,
-            at,
-        );
-        at += take;
-    }
-    let mut rigid_vectors = Mat::zeros(
-        n,
-        sources
-            .iter()
-            .map(|l| l.solution.rigid_vectors.ncols())
-            .sum(),
-    );
-    let mut at = 0;
-    for l in &sources {
-        l.write_all(
-            mirrors,
-            l.solution.rigid_vectors.as_ref(),
-            &mut rigid_vectors,
-            at,
-        );
-        at += l.solution.rigid_vectors.ncols();
-    }
+    let own_guards = (sources.iter().zip(&from_guards))
+        .map(|(l, &take)| (l, l.solution.guard_vectors.get(.., 0..take)));
+    write_blocks(mirrors, &mut guard_vectors, extra.len(), own_guards);
+    let rigid_count = sources
+        .iter()
+        .map(|l| l.solution.rigid_vectors.ncols())
+        .sum();
+    let mut rigid_vectors = Mat::zeros(n, rigid_count);
+    let rigid = sources
+        .iter()
+        .map(|l| (l, l.solution.rigid_vectors.as_ref()));
+    write_blocks(mirrors, &mut rigid_vectors, 0, rigid);
     EigenSolution {
         eigenvalues: pairs[..keep].iter().map(|p| p.0).collect(),
         vectors,
