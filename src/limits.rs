@@ -9,7 +9,7 @@
 //! |---|---|---|---|
 //! | grid side | [`crate::shape::MAX_GRID_DIM`] = 256 voxels | `VoxelGrid::new` | refused before the grid is allocated |
 //! | occupied voxels | [`crate::shape::MAX_OCCUPIED_VOXELS`] = 300,000 | the FEM mesh | refused before assembly |
-//! | Cholesky factor | [`crate::eigen::factor::MAX_FACTOR_BYTES`] = 6 GiB | the symbolic analysis | refused before the numeric factorisation (the error names LOBPCG or a coarser grid) |
+//! | Cholesky factor (faer's values and their packed copy) | [`crate::eigen::factor::MAX_FACTOR_BYTES`] = 6 GiB | the symbolic analysis | refused before the numeric factorisation (the error names LOBPCG or a coarser grid) |
 //! | modes per solve | [`crate::eigen::MAX_MODES`] = 4,000 | `EigenOptions` | capped |
 //! | modes in a recording | [`crate::engine::recorded::MAX_RECORDED_MODES`] = 512 | `RecordedObject::validate` | refused |
 //! | recording length | [`crate::analysis::wav::MAX_SECONDS`] = 60 s | `read_mono` | refused from the header, before the samples are read |
