@@ -281,7 +281,11 @@ fn subtract_transposed<const W: usize, const FMA: bool>(
 #[inline]
 unsafe fn subtract_transposed_avx2(panel: &[f64], y: &[[f64; 8]; R], t: &mut [[f64; 8]]) {
     use std::arch::x86_64::*;
-    assert_eq!(panel.len(), t.len() * R, "a panel entry per row of t and panel row");
+    assert_eq!(
+        panel.len(),
+        t.len() * R,
+        "a panel entry per row of t and panel row"
+    );
     // SAFETY: each `y[i]` is 8 contiguous floats; the loads are unaligned ones.
     let ys: [[__m256d; 2]; R] = std::array::from_fn(|i| unsafe {
         let p = y[i].as_ptr();
