@@ -6,7 +6,8 @@
 //! sphere and a hollow bowl (wall 2 voxels) in a 32^3 grid, 20 and 80 modes, residual 1e-6
 //! (Jin et al. 2022, Table 1), every solver and element, plus the 64^3 sphere.
 //! `cargo bench --bench eigen -- --table` prints only the table; `--quick` only the 32^3 rows
-//! with 20 modes; a criterion filter (`-- factor_bowl16`) only the kernels it names.
+//! with 20 modes; a criterion filter (`-- factor_bowl16`, `-- solve_bowl16`) only the kernels
+//! it names.
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use faer::Par;
@@ -103,6 +104,23 @@ fn kernels(c: &mut Criterion) {
     group.bench_function("kept_symbolic", |b| {
         b.iter(|| ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor"))
     });
+    group.finish();
+    // One Lanczos block's triangular solves with that factor (the whole model's: a lone
+    // stroke's exact answer solves it whole), on the packed panels (`eigen/factor/rows.rs`).
+    let mut llt = ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor");
+    let mut group = c.benchmark_group("solve_bowl16_hex27x2");
+    for width in [8usize] {
+        // Each solve starts from the same block (solving in place again and again would
+        // scale it towards overflow or subnormals); the copy is ~1 % of the solve.
+        let rhs = faer::Mat::<f64>::from_fn(nb, width, |i, j| ((i * 7 + j * 13) % 17) as f64);
+        let mut x = rhs.clone();
+        group.bench_with_input(BenchmarkId::from_parameter(width), &width, |b, _| {
+            b.iter(|| {
+                x.copy_from(&rhs);
+                llt.solve_in_place(black_box(x.as_mut()))
+            })
+        });
+    }
     group.finish();
     let mut mg = Multigrid::new(&model, 32).expect("hierarchy");
     let mut group = c.benchmark_group("vcycle_sphere32_hex8");

@@ -20,8 +20,9 @@
 //! independent 4-wide accumulators for a block of eight). Reading faer's layout directly, one
 //! pass strided across columns and the other re-read right-hand-side rows four columns at a
 //! time: a block of eight on the default bowl's whole factor (5,967 DOFs, 1.75M entries) took
-//! 4.0-4.7 ms, against 1.8-2.5 ms in panels (stop 47, the two builds interleaved), and a
-//! whole solve of 60 modes 282-334 ms against 239-279 ms.
+//! 5.4-5.5 ms, against 2.5-3.3 ms in panels (stop 47, `cargo bench --bench eigen --
+//! solve_bowl16`, the two builds interleaved), and a whole solve of 60 modes 282-334 ms
+//! against 239-279 ms.
 //! Kernels are compiled for AVX2 + FMA and picked at run time, with a portable build of the
 //! same code as the fallback.
 
