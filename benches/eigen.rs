@@ -109,18 +109,17 @@ fn kernels(c: &mut Criterion) {
     // stroke's exact answer solves it whole), on the packed panels (`eigen/factor/rows.rs`).
     let mut llt = ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor");
     let mut group = c.benchmark_group("solve_bowl16_hex27x2");
-    for width in [8usize] {
-        // Each solve starts from the same block (solving in place again and again would
-        // scale it towards overflow or subnormals); the copy is ~1 % of the solve.
-        let rhs = faer::Mat::<f64>::from_fn(nb, width, |i, j| ((i * 7 + j * 13) % 17) as f64);
-        let mut x = rhs.clone();
-        group.bench_with_input(BenchmarkId::from_parameter(width), &width, |b, _| {
-            b.iter(|| {
-                x.copy_from(&rhs);
-                llt.solve_in_place(black_box(x.as_mut()))
-            })
-        });
-    }
+    let width = 8;
+    // Each solve starts from the same block (solving in place again and again would scale it
+    // towards overflow or subnormals); the copy is ~1 % of the solve.
+    let rhs = faer::Mat::<f64>::from_fn(nb, width, |i, j| ((i * 7 + j * 13) % 17) as f64);
+    let mut x = rhs.clone();
+    group.bench_with_input(BenchmarkId::from_parameter(width), &width, |b, _| {
+        b.iter(|| {
+            x.copy_from(&rhs);
+            llt.solve_in_place(black_box(x.as_mut()))
+        })
+    });
     group.finish();
     let mut mg = Multigrid::new(&model, 32).expect("hierarchy");
     let mut group = c.benchmark_group("vcycle_sphere32_hex8");
