@@ -15,14 +15,14 @@
 //! supernodes of 53 columns on average), so the passes are dense products, and they run at the
 //! speed the factor streams from cache. The values are therefore copied once, after the
 //! numeric factorisation, from faer's column-major supernodes into panels of [`R`] rows stored
-//! column by column (`[k][i]`, [`pack`]): both passes then read the factor in order, four rows
-//! of a column at a time, with the products of a panel against the block in registers (eight
-//! independent 4-wide accumulators for a block of eight). Reading faer's layout directly, one
-//! pass strided across columns and the other re-read right-hand-side rows four columns at a
-//! time: a block of eight on the default bowl's whole factor (5,967 DOFs, 1.75M entries) took
-//! 5.4-5.5 ms, against 2.5-3.3 ms in panels (stop 47, `cargo bench --bench eigen --
-//! solve_bowl16`, the two builds interleaved), and a whole solve of 60 modes 282-334 ms
-//! against 239-279 ms.
+//! column by column (`[k][i]`, [`SupernodalRows::new`]): both passes then read the factor in
+//! order, four rows of a column at a time, with the products of a panel against the block in
+//! registers (eight independent 4-wide accumulators for a block of eight). Reading faer's
+//! layout directly, one pass strided across columns and the other re-read right-hand-side rows
+//! four columns at a time: a block of eight on the default bowl's whole factor (5,967 DOFs,
+//! 1.75M entries) took 5.4-5.5 ms, against 2.5-3.3 ms in panels (stop 47, `cargo bench
+//! --bench eigen -- solve_bowl16`, the two builds interleaved), and a whole solve of 60 modes
+//! 282-334 ms against 239-279 ms.
 //! Kernels are compiled for AVX2 + FMA and picked at run time, with a portable build of the
 //! same code as the fallback.
 
@@ -42,7 +42,8 @@ pub(super) struct SupernodalRows {
     /// last column.
     row_ptr: Vec<u32>,
     rows: Vec<u32>,
-    /// Its packed values: `values[val_ptr[s]..val_ptr[s + 1]]` (the layout of [`pack`]).
+    /// Its packed values: `values[val_ptr[s]..val_ptr[s + 1]]` (the layout
+    /// [`SupernodalRows::new`] makes).
     val_ptr: Vec<usize>,
     /// `1 / L[j, j]` for every column.
     inv_diag: Vec<f64>,
@@ -352,9 +353,10 @@ fn forward<const W: usize, const FMA: bool>(
             } else {
                 let acc = panel_times::<W, FMA>(panel, top, nc);
                 for (i, a) in acc.iter().enumerate().take(n) {
-                    // SAFETY: `SupernodalRows::new` checked every pattern row is past this
-                    // supernode's last column (`first - 1`) and below the order, which `solve`
-                    // asserted is `x.len()`; so `row - first < tail.len()`.
+                    // SAFETY: a panel's rows lie in the supernode's `ld`, so `row - nc + i <
+                    // rows.len()` (`i < n`); `SupernodalRows::new` checked every pattern row is
+                    // past this supernode's last column (`first - 1`) and below the order,
+                    // which `solve` asserted is `x.len()`; so `row - first < tail.len()`.
                     let y = unsafe {
                         tail.get_unchecked_mut(*rows.get_unchecked(row - nc + i) as usize - first)
                     };
@@ -390,7 +392,8 @@ fn backward<const W: usize, const FMA: bool>(
             at += kc * R;
             let y: [[f64; W]; R] = std::array::from_fn(|i| {
                 if i < n {
-                    // SAFETY: as in `forward`, `row - first < tail.len()`.
+                    // SAFETY: as in `forward`, `row - nc + i < rows.len()` and
+                    // `row - first < tail.len()`.
                     unsafe {
                         *tail.get_unchecked(*rows.get_unchecked(row - nc + i) as usize - first)
                     }
