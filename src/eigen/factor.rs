@@ -351,24 +351,24 @@ mod tests {
     use crate::shape::spec::ShapeSpec;
     use faer::Mat;
 
-    /// A shell with curved, partial voxels: supernodes of every size from 3 columns up.
-    fn bowl() -> FemModel {
-        let spec: ShapeSpec = "bowl:d=8,wall=2".parse().expect("spec");
+    /// A bowl of diameter `d` voxels with curved, partial voxels, of `kind` elements.
+    fn shell(d: f64, kind: ElementKind) -> FemModel {
+        let spec: ShapeSpec = format!("bowl:d={d},wall=2").parse().expect("spec");
         let ShapeSpec::Primitive { shape, .. } = spec else {
             panic!("a primitive")
         };
         let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).expect("model")
+        FemModel::assemble(&grid, kind, 0.3).expect("model")
+    }
+
+    /// A hex8i shell: supernodes of every size from 3 columns up.
+    fn bowl() -> FemModel {
+        shell(8.0, ElementKind::Hex8Incompatible)
     }
 
     /// A shell of hex27 blocks: supernodes of hundreds of rows, in panels of every remainder.
     fn hex27_bowl() -> FemModel {
-        let spec: ShapeSpec = "bowl:d=10,wall=2".parse().expect("spec");
-        let ShapeSpec::Primitive { shape, .. } = spec else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        FemModel::assemble(&grid, ElementKind::Hex27Blocks, 0.3).expect("model")
+        shell(10.0, ElementKind::Hex27Blocks)
     }
 
     /// `||A X - B|| / (||A|| ||X||)` per column, `A = K - shift M`.
