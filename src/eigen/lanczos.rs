@@ -18,9 +18,12 @@
 //! tolerance.
 
 mod check;
+mod iteration;
+
+pub(crate) use iteration::{FirstRoom, Iteration};
 
 use super::factor::ShiftedCholesky;
-use super::{EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop, Which};
+use super::{EigenError, EigenOptions, EigenSolution, Operators, Stop, Which};
 use crate::buffer::KeptColumns;
 use crate::fem::FemModel;
 use check::{Check, NextBlock, RitzCheck, RitzPairs};
@@ -373,9 +376,7 @@ const RIGID_BODY_MODES: usize = 6;
 const BELOW_FIRST_PAIRS: usize = 20 + RIGID_BODY_MODES;
 
 /// The iteration on an existing factorisation `llt` of `K - shift M`; `setup_ms` of the
-/// result is zero. Steps: expand the basis block by block, checking convergence on the way
-/// ([`Krylov::expand`]); when it is full, verify the Ritz pairs with formed vectors, decide
-/// how many pairs are wanted now ([`wanted_after_restart`]) and restart ([`Krylov::restart`]).
+/// result is zero. Its steps: [`Iteration::run`].
 pub fn run(
     ops: &Operators,
     llt: &mut ShiftedCholesky,
@@ -397,113 +398,7 @@ pub fn run_until(
         rigid: RIGID_BODY_MODES,
         below: BELOW_FIRST_PAIRS,
     };
-    run_with_room(ops, llt, shift, options, stop, room)
-}
-
-/// The pairs a solve first makes room for, before it has counted any (it grows after a
-/// restart where they were too few).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct FirstRoom {
-    /// Rigid-body modes expected besides a "first k" request's `k`.
-    pub rigid: usize,
-    /// Pairs of a "below f_max" request.
-    pub below: usize,
-}
-
-/// [`run_until`] with the first room given: a symmetry class is small, so its basis needs more
-/// slack than six rigid modes' to avoid a restart, and it knows about how many modes lie below
-/// its bound ([`super::symmetric`]).
-pub(crate) fn run_with_room(
-    ops: &Operators,
-    llt: &mut ShiftedCholesky,
-    shift: f64,
-    options: &EigenOptions,
-    stop: Stop,
-    room: FirstRoom,
-) -> Result<EigenSolution, EigenError> {
-    let n = ops.dofs();
-    let b = options.block_size.min(n);
-    let nev = match options.count {
-        ModeCount::First(k) if k + room.rigid > n => {
-            return Err(EigenError::TooFewDofs { dofs: n, wanted: k })
-        }
-        ModeCount::First(k) => k + room.rigid,
-        ModeCount::Below(_) => room.below,
-    };
-    let mut checker = RitzCheck {
-        ops,
-        shift,
-        options,
-        nev,
-        started: Instant::now(),
-        restarts: 0,
-        band: Some(b),
-        stop,
-    };
-    let mut krylov = Krylov::start(ops, basis_cap(nev, b, n), b, nev)?;
-    let (mut converged_count, mut worst) = (0, f64::INFINITY);
-    for restart in 0..options.max_iterations {
-        checker.restarts = restart;
-        let full = match krylov.expand(ops, llt, &mut checker)? {
-            Expanded::Done(solution) => return Ok(*solution),
-            Expanded::Full(full) => full,
-        };
-        let ritz = RitzPairs::new(
-            ops,
-            shift,
-            &krylov.projected(),
-            &full.next(),
-            checker.nev,
-            None,
-        )?;
-        // The estimates can be pessimistic: a full basis is always checked with formed vectors.
-        let check = checker.nev.min(ritz.order.len());
-        let rigid = match checker.verify(&krylov.basis, &ritz, check)? {
-            Check::Done(solution) => return Ok(*solution),
-            Check::Converged(c, w) => {
-                (converged_count, worst) = (c, w);
-                (0..c)
-                    .filter(|&j| ops.is_rigid(ritz.lambda(shift, j)))
-                    .count()
-            }
-        };
-        let nev = wanted_after_restart(options.count, checker.nev, rigid, converged_count, b);
-        checker.nev = nev;
-        // The restarted projected matrix is an arrow (kept Ritz values, their coupling to
-        // the residual block), not a band.
-        checker.band = None;
-        if nev + 2 * b > n {
-            return Err(EigenError::TooFewDofs {
-                dofs: n,
-                wanted: nev,
-            });
-        }
-        krylov.grow(basis_cap(nev, b, n));
-        krylov.restart(&ritz, &full, nev, converged_count);
-    }
-    Err(EigenError::NoConvergence {
-        converged: converged_count,
-        wanted: checker.nev,
-        worst_residual: worst,
-    })
-}
-
-/// Pairs wanted after a restart found `rigid` rigid modes among `converged` converged pairs:
-/// a "first k" request now knows its rigid count; a "below f_max" request that has converged
-/// all it asked for (and so has not reached f_max yet) asks for half as many more, up to
-/// [`super::MAX_MODES`] and a margin.
-fn wanted_after_restart(
-    count: ModeCount,
-    nev: usize,
-    rigid: usize,
-    converged: usize,
-    b: usize,
-) -> usize {
-    match count {
-        ModeCount::First(k) => nev.max(rigid + k),
-        ModeCount::Below(_) if converged + b >= nev => (nev * 3 / 2 + b).min(super::MAX_MODES + 64),
-        ModeCount::Below(_) => nev,
-    }
+    Iteration::start(ops, options, room)?.run(ops, llt, shift, options, stop)
 }
 
 /// The residual block that did not fit in a full basis, kept for the restart.
@@ -527,8 +422,9 @@ impl Residual {
 
 /// How [`Krylov::expand`] ended.
 enum Expanded {
-    /// Every wanted pair converged.
-    Done(Box<EigenSolution>),
+    /// Every wanted pair converged; the block that would have extended the basis is kept for
+    /// a later, larger request ([`Iteration::run`]).
+    Done(Box<EigenSolution>, Residual),
     /// The basis is full.
     Full(Residual),
 }
@@ -582,7 +478,6 @@ impl Krylov {
         llt: &mut ShiftedCholesky,
         checker: &mut RitzCheck,
     ) -> Result<Expanded, EigenError> {
-        let b = self.block;
         loop {
             checker.stop.check()?;
             let cols = self.fresh.clone();
@@ -593,41 +488,56 @@ impl Krylov {
                 .as_mut()
                 .get_mut(0..self.basis.len, cols.clone())
                 .copy_from(&c);
+            let block = Residual {
+                q,
+                mq,
+                r,
+                last: cols,
+            };
             if self.basis.len >= self.next_check {
-                let next = NextBlock {
-                    q: &q,
-                    mq: &mq,
-                    r: &r,
-                    last: cols.clone(),
-                };
-                match checker.run(&self.basis, &self.projected(), &next)? {
-                    Check::Done(solution) => return Ok(Expanded::Done(solution)),
-                    Check::Converged(converged, _) => {
-                        let len = self.basis.len;
-                        self.next_check =
-                            len + vectors_before_next_check(len, converged, checker.nev, b);
-                    }
+                match checker.run(&self.basis, &self.projected(), &block.next())? {
+                    Check::Done(solution) => return Ok(Expanded::Done(solution, block)),
+                    Check::Converged(converged, _) => self.schedule_check(converged, checker.nev),
                 }
             }
-            if self.basis.len + q.ncols() > self.basis.cap() {
-                return Ok(Expanded::Full(Residual {
-                    q,
-                    mq,
-                    r,
-                    last: cols,
-                }));
+            if !self.fits(&block) {
+                return Ok(Expanded::Full(block));
             }
-            let at = self.basis.len..self.basis.len + q.ncols();
-            self.h.as_mut().get_mut(at.clone(), cols).copy_from(&r);
-            self.basis.v.as_mut().get_mut(.., at.clone()).copy_from(&q);
-            self.basis
-                .mv
-                .as_mut()
-                .get_mut(.., at.clone())
-                .copy_from(&mq);
-            self.basis.len = at.end;
-            self.fresh = at;
+            self.append(block);
         }
+    }
+
+    /// Schedules the next convergence check after one found `converged` of `nev` pairs.
+    fn schedule_check(&mut self, converged: usize, nev: usize) {
+        let len = self.basis.len;
+        self.next_check = len + vectors_before_next_check(len, converged, nev, self.block);
+    }
+
+    /// Whether the basis has room for `block`.
+    fn fits(&self, block: &Residual) -> bool {
+        self.basis.len + block.q.ncols() <= self.basis.cap()
+    }
+
+    /// Appends the next block (its coefficients along the basis are in `h` already): it
+    /// becomes the block whose operator image is computed next.
+    fn append(&mut self, block: Residual) {
+        let at = self.basis.len..self.basis.len + block.q.ncols();
+        self.h
+            .as_mut()
+            .get_mut(at.clone(), block.last)
+            .copy_from(&block.r);
+        self.basis
+            .v
+            .as_mut()
+            .get_mut(.., at.clone())
+            .copy_from(&block.q);
+        self.basis
+            .mv
+            .as_mut()
+            .get_mut(.., at.clone())
+            .copy_from(&block.mq);
+        self.basis.len = at.end;
+        self.fresh = at;
     }
 
     /// M-orthogonalises a new block `w` against the basis (the last two blocks, then the
