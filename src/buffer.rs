@@ -16,6 +16,7 @@
 //!   time) of the default object's 150 ms cold solve. A Cholesky factor's values and its
 //!   factorisation scratch go back to the pool when it is dropped.
 
+use std::collections::TryReserveError;
 use std::sync::{Mutex, PoisonError};
 
 /// Buffers smaller than this are left alone (their first touch is cheap).
@@ -87,14 +88,31 @@ impl<T> Pool<T> {
             .sum()
     }
 
-    /// The smallest kept buffer with room for `capacity` elements, emptied.
-    fn take(&mut self, capacity: usize) -> Option<Vec<T>> {
+    /// The smallest kept buffer with room for `capacity` elements, as it was left.
+    fn remove_smallest(&mut self, capacity: usize) -> Option<Vec<T>> {
         let best = (self.buffers.iter().enumerate())
             .filter(|(_, b)| b.capacity() >= capacity)
             .min_by_key(|(_, b)| b.capacity())
             .map(|(i, _)| i)?;
-        let mut v = self.buffers.remove(best);
+        Some(self.buffers.remove(best))
+    }
+
+    /// The smallest kept buffer with room for `capacity` elements, emptied.
+    fn take(&mut self, capacity: usize) -> Option<Vec<T>> {
+        let mut v = self.remove_smallest(capacity)?;
         v.clear();
+        Some(v)
+    }
+
+    /// The smallest kept buffer with room for `len` elements, as it was left but for the
+    /// length: elements beyond its last length are zeros.
+    fn take_unfilled(&mut self, len: usize) -> Option<Vec<T>>
+    where
+        T: Copy + Default,
+    {
+        let mut v = self.remove_smallest(len)?;
+        v.truncate(len);
+        v.resize(len, T::default());
         Some(v)
     }
 
@@ -146,6 +164,27 @@ pub fn take<T: Recycled>(capacity: usize) -> Vec<T> {
     T::with_pool(|pool| pool.take(capacity)).unwrap_or_default()
 }
 
+/// A vector of `len` elements whose values are unspecified, for a buffer its user writes
+/// before reading: a kept buffer holds what its last use left (only a tail beyond that use's
+/// length is zeroed here), fresh memory comes zeroed from the allocator and is mapped by the
+/// kernel on first touch. Either way no pass over the whole buffer is made: a Lanczos basis
+/// is sized for a request's worst case and mostly left unused.
+pub fn take_unfilled<T: Recycled + Default>(len: usize) -> Result<Vec<T>, TryReserveError> {
+    match T::with_pool(|pool| pool.take_unfilled(len)) {
+        Some(v) => Ok(v),
+        None => zeroed_fallible(len),
+    }
+}
+
+/// `len` zeros from the allocator's zeroed memory (`T::default()` must be all-zero bits, as
+/// it is for floats and integers), or the allocation's failure.
+fn zeroed_fallible<T: Copy + Default>(len: usize) -> Result<Vec<T>, TryReserveError> {
+    let mut probe: Vec<T> = Vec::new();
+    probe.try_reserve_exact(len)?;
+    drop(probe);
+    Ok(zeroed(len))
+}
+
 /// Keeps `v`'s memory for a later [`take`], dropping the oldest kept buffers beyond
 /// [`KEPT_BYTES`] or [`KEPT_COUNT`]. Small buffers are freed.
 pub fn recycle<T: Recycled>(v: Vec<T>) {
@@ -158,7 +197,7 @@ pub fn free_kept() {
     usize::with_pool(|pool| pool.buffers.clear());
 }
 
-/// A column-major `nrows x ncols` block of zeros in a kept buffer ([`take`]), handed back to
+/// A column-major `nrows x ncols` block in a kept buffer ([`take_unfilled`]), handed back to
 /// the pool when dropped: the Lanczos basis, rebuilt per solve. Like a `faer::Mat`, each
 /// column starts on a 64-byte boundary (the matrix products' loads are aligned).
 pub struct KeptColumns {
@@ -174,12 +213,16 @@ pub struct KeptColumns {
 const ALIGN_F64S: usize = 8;
 
 impl KeptColumns {
-    /// `nrows x ncols` zeros.
-    pub fn zeros(nrows: usize, ncols: usize) -> Self {
+    /// `nrows x ncols` of unspecified values ([`take_unfilled`]), for a block whose columns
+    /// are written before they are read.
+    pub fn unfilled(nrows: usize, ncols: usize) -> Self {
         let col_stride = nrows.next_multiple_of(ALIGN_F64S);
         let len = col_stride * ncols + ALIGN_F64S;
-        let mut values = take(len);
-        values.resize(len, 0.0);
+        let values = take_unfilled(len).unwrap_or_else(|_| vec![0.0; len]);
+        Self::aligned(values, nrows, ncols, col_stride)
+    }
+
+    fn aligned(values: Vec<f64>, nrows: usize, ncols: usize, col_stride: usize) -> Self {
         let misaligned = (values.as_ptr() as usize / std::mem::size_of::<f64>()) % ALIGN_F64S;
         KeptColumns {
             values,
@@ -281,15 +324,13 @@ mod tests {
     }
 
     #[test]
-    fn kept_columns_are_zeros_of_their_shape() {
-        let mut c = KeptColumns::zeros(5, 3);
+    fn kept_columns_have_their_shape_and_aligned_columns() {
+        let mut c = KeptColumns::unfilled(5, 3);
         assert_eq!((c.nrows(), c.ncols()), (5, 3));
         c.as_mut()[(4, 2)] = 1.0;
         assert_eq!(c.as_ref()[(4, 2)], 1.0);
         drop(c);
-        // Memory written before comes back as zeros.
-        let c = KeptColumns::zeros(4, 2);
-        assert!((0..4).all(|i| (0..2).all(|j| c.as_ref()[(i, j)] == 0.0)));
+        let c = KeptColumns::unfilled(4, 2);
         for j in 0..2 {
             assert_eq!(
                 c.as_ref().col(j).as_ptr() as usize % 64,
@@ -297,5 +338,22 @@ mod tests {
                 "column {j} aligned"
             );
         }
+    }
+
+    #[test]
+    fn unfilled_buffers_have_their_length_and_zeros_beyond_what_was_written() {
+        // Fresh memory: zeros.
+        let len = MIN_KEPT_BYTES / 8 + 100;
+        let v: Vec<f64> = take_unfilled(len).expect("memory");
+        assert_eq!(v.len(), len);
+        // A buffer kept shorter than its capacity comes back longer: its tail is zeros.
+        let mut pool = Pool::<f64>::new();
+        let mut kept = Vec::with_capacity(2 * len);
+        kept.resize(len, 7.0);
+        pool.keep(kept);
+        let again = pool.take_unfilled(len + 10).expect("kept");
+        assert_eq!(again.len(), len + 10);
+        assert!(again[..len].iter().all(|&x| x == 7.0), "as left");
+        assert!(again[len..].iter().all(|&x| x == 0.0), "the tail zeroed");
     }
 }

@@ -186,11 +186,8 @@ impl ShiftedCholesky {
             |_| EigenError::Factorization("out of memory for the Cholesky factor".into());
         // The values and the scratch come from the process's kept buffers where it has them
         // (`crate::buffer`: a worker's next solve does not fault them in again).
-        let mut values = buffer::take::<f64>(symbolic.len_val());
-        values
-            .try_reserve_exact(symbolic.len_val())
-            .map_err(out_of_memory)?;
-        values.resize(symbolic.len_val(), 0.0);
+        // faer zeroes the values itself before it factors.
+        let mut values = buffer::take_unfilled::<f64>(symbolic.len_val()).map_err(out_of_memory)?;
         let scratch_req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
         let scratch_len = scratch_req.unaligned_bytes_required().div_ceil(8);
         let mut fac_scratch = buffer::take::<f64>(scratch_len);

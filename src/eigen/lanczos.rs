@@ -47,8 +47,8 @@ struct Basis {
 impl Basis {
     fn new(n: usize, cap: usize) -> Self {
         Basis {
-            v: KeptColumns::zeros(n, cap),
-            mv: KeptColumns::zeros(n, cap),
+            v: KeptColumns::unfilled(n, cap),
+            mv: KeptColumns::unfilled(n, cap),
             len: 0,
         }
     }
@@ -62,8 +62,8 @@ impl Basis {
             return;
         }
         let n = self.v.nrows();
-        let mut v = KeptColumns::zeros(n, cap);
-        let mut mv = KeptColumns::zeros(n, cap);
+        let mut v = KeptColumns::unfilled(n, cap);
+        let mut mv = KeptColumns::unfilled(n, cap);
         v.as_mut()
             .get_mut(.., ..self.len)
             .copy_from(self.v.as_ref().get(.., ..self.len));
@@ -450,7 +450,14 @@ impl Krylov {
         let n = ops.dofs();
         let mut basis = Basis::new(n, cap);
         let mut seed = 1u64;
-        let (q, mq, _) = block_qr(ops, &basis, ops.random_block(b, seed), &mut seed)?;
+        // A random block is well conditioned: CholQR2 (one block product with M) does, and
+        // the column-wise fallback is for a block that lost its rank.
+        let w = ops.random_block(b, seed);
+        let nothing = Mat::zeros(0, w.ncols());
+        let (q, mq, _) = match chol_qr(ops, &w, &nothing, &nothing) {
+            Ok(qr) => qr,
+            Err(_) => block_qr(ops, &basis, w, &mut seed)?,
+        };
         basis.v.as_mut().get_mut(.., 0..b).copy_from(&q);
         basis.mv.as_mut().get_mut(.., 0..b).copy_from(&mq);
         basis.len = b;
