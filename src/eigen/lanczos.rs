@@ -353,7 +353,7 @@ fn first_check(nev: usize, b: usize) -> usize {
 }
 
 /// Vectors to add before the next convergence check, after one found `converged` of `nev`
-/// pairs converged in a basis of `len`: half of what a linear extrapolation (`len /
+/// wanted pairs converged in a basis of `len`: half of what a linear extrapolation (`len /
 /// converged` vectors per pair) gives the missing pairs, in whole blocks, at least one block
 /// and at most `nev`. A check costs about what a block does (a dense eigendecomposition of the
 /// projected matrix, ~4 ms at 200 vectors); pairs converge faster as the basis grows, so the
@@ -397,6 +397,8 @@ pub fn run_until(
     let room = FirstRoom {
         rigid: RIGID_BODY_MODES,
         below: BELOW_FIRST_PAIRS,
+        rigid_expected: RIGID_BODY_MODES,
+        below_expected: BELOW_FIRST_PAIRS,
     };
     Iteration::start(ops, options, room)?.run(ops, llt, shift, options, stop)
 }
@@ -437,6 +439,9 @@ struct Krylov {
     fresh: std::ops::Range<usize>,
     /// Basis length of the next convergence check.
     next_check: usize,
+    /// Pairs the checks are scheduled for: those a request is expected to hold, which for a
+    /// symmetry class is far fewer than the room its basis keeps.
+    aim: usize,
     /// State of the random blocks that replace a block lost to breakdown.
     seed: u64,
     /// The block size asked for (a block can come out narrower after a breakdown).
@@ -444,9 +449,9 @@ struct Krylov {
 }
 
 impl Krylov {
-    /// A basis of capacity `cap` started from an M-orthonormalised random block of `b`, for
-    /// `nev` pairs.
-    fn start(ops: &Operators, cap: usize, b: usize, nev: usize) -> Result<Self, EigenError> {
+    /// A basis of capacity `cap` started from an M-orthonormalised random block of `b`, its
+    /// checks scheduled for `aim` pairs.
+    fn start(ops: &Operators, cap: usize, b: usize, aim: usize) -> Result<Self, EigenError> {
         let n = ops.dofs();
         let mut basis = Basis::new(n, cap);
         let mut seed = 1u64;
@@ -465,7 +470,8 @@ impl Krylov {
             h: Mat::zeros(cap, cap),
             basis,
             fresh: 0..b,
-            next_check: first_check(nev, b),
+            next_check: first_check(aim, b),
+            aim,
             seed,
             block: b,
         })
@@ -504,7 +510,7 @@ impl Krylov {
             if self.basis.len >= self.next_check {
                 match checker.run(&self.basis, &self.projected(), &block.next())? {
                     Check::Done(solution) => return Ok(Expanded::Done(solution, block)),
-                    Check::Converged(converged, _) => self.schedule_check(converged, checker.nev),
+                    Check::Converged(converged, _) => self.schedule_check(converged),
                 }
             }
             if !self.fits(&block) {
@@ -514,10 +520,10 @@ impl Krylov {
         }
     }
 
-    /// Schedules the next convergence check after one found `converged` of `nev` pairs.
-    fn schedule_check(&mut self, converged: usize, nev: usize) {
+    /// Schedules the next convergence check after one found `converged` pairs converged.
+    fn schedule_check(&mut self, converged: usize) {
         let len = self.basis.len;
-        self.next_check = len + vectors_before_next_check(len, converged, nev, self.block);
+        self.next_check = len + vectors_before_next_check(len, converged, self.aim, self.block);
     }
 
     /// Whether the basis has room for `block`.

@@ -149,8 +149,10 @@ fn solve_classes(
             (None, None) => first,
         };
         let ops = class.operators(&whole);
+        // A class asked below the estimate is expected to hold about 1.25 times its share.
+        let expected = (5 * share).div_ceil(4);
         let (solution, iteration) =
-            solve_class(&ops, &mut llt, shift, options, count, share, stop)?;
+            solve_class(&ops, &mut llt, shift, options, count, expected, stop)?;
         if estimate.is_none() && matches!(options.count, ModeCount::First(_)) {
             // Where this class holds 1.25 times its share.
             let e = &solution.eigenvalues;
@@ -205,9 +207,10 @@ fn solve_classes(
             let (class, llt, iteration) = &mut problems[i];
             let ops = class.operators(&whole);
             let count = ModeCount::Below(limit);
-            let room = solved[i].solution.eigenvalues.len() * 3 / 2;
-            // The class's basis goes on from where its last request was met.
-            iteration.make_room(&ops, room_pairs(room));
+            let found = solved[i].solution.eigenvalues.len();
+            // The class's basis goes on from where its last request was met, for a few more
+            // modes than it found (the bound rose to the k-th lowest of all classes).
+            iteration.make_room(&ops, room_pairs(found * 3 / 2), found + 2 + RIGID_EXPECTED);
             let class_options = EigenOptions { count, ..*options };
             let solution = iteration.run(&ops, llt, shift, &class_options, stop)?;
             iterate_ms += solution.timings.iterate_ms;
@@ -242,6 +245,8 @@ fn solve_class(
     let room = FirstRoom {
         rigid: RIGID_ROOM,
         below: room_pairs(expected),
+        rigid_expected: RIGID_EXPECTED,
+        below_expected: expected + RIGID_EXPECTED,
     };
     let class_options = EigenOptions { count, ..*options };
     let mut iteration = Iteration::start(ops, &class_options, room)?;
@@ -290,6 +295,10 @@ const BELOW_SHARE: usize = 20;
 /// the six rigid motions): with six, the whole solve's room, the default bowl's first classes
 /// filled their bases and restarted once; with twelve none did.
 const RIGID_ROOM: usize = 12;
+
+/// Rigid motions a class holds at most (one mirror splits the six into three and three):
+/// the convergence checks are scheduled for a class's modes and these, not for its room.
+const RIGID_EXPECTED: usize = 3;
 
 /// Where columns of the whole model's answer come from: a class's answer, lifted, and mapped
 /// onto an image class by the swaps `path` (none for the class itself).

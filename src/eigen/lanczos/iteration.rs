@@ -17,10 +17,16 @@ use std::time::Instant;
 /// restart where they were too few).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct FirstRoom {
-    /// Rigid-body modes expected besides a "first k" request's `k`.
+    /// Pairs of room besides a "first k" request's `k`: its rigid-body modes and slack.
     pub rigid: usize,
-    /// Pairs of a "below f_max" request.
+    /// Pairs of room of a "below f_max" request.
     pub below: usize,
+    /// Rigid-body modes expected besides a "first k" request's `k`: the convergence checks
+    /// are scheduled for them and the `k` pairs.
+    pub rigid_expected: usize,
+    /// Pairs (rigid ones included) a "below f_max" request is expected to hold: the checks
+    /// are scheduled for them.
+    pub below_expected: usize,
 }
 
 /// One Lanczos iteration on one factorisation: its basis and where its schedule stands.
@@ -47,15 +53,15 @@ impl Iteration {
     ) -> Result<Self, EigenError> {
         let n = ops.dofs();
         let b = options.block_size.min(n);
-        let nev = match options.count {
+        let (nev, aim) = match options.count {
             ModeCount::First(k) if k + room.rigid > n => {
                 return Err(EigenError::TooFewDofs { dofs: n, wanted: k })
             }
-            ModeCount::First(k) => k + room.rigid,
-            ModeCount::Below(_) => room.below,
+            ModeCount::First(k) => (k + room.rigid, k + room.rigid_expected),
+            ModeCount::Below(_) => (room.below, room.below_expected),
         };
         Ok(Iteration {
-            krylov: Krylov::start(ops, basis_cap(nev, b, n), b, nev)?,
+            krylov: Krylov::start(ops, basis_cap(nev, b, n), b, aim.min(nev))?,
             nev,
             restarts: 0,
             band: Some(b),
@@ -64,8 +70,10 @@ impl Iteration {
     }
 
     /// Checks at least `pairs` pairs (rigid ones included) from now on, growing the basis
-    /// for them: for a second request that expects more pairs than the first.
-    pub fn make_room(&mut self, ops: &Operators, pairs: usize) {
+    /// for them, and schedules the checks for `aim` of them: for a second request that
+    /// expects more pairs than the first.
+    pub fn make_room(&mut self, ops: &Operators, pairs: usize, aim: usize) {
+        self.krylov.aim = self.krylov.aim.max(aim.min(pairs));
         if pairs > self.nev {
             self.nev = pairs;
             let b = self.krylov.block;
@@ -107,7 +115,7 @@ impl Iteration {
                     self.pending = Some(block);
                     return Ok(*solution);
                 }
-                Check::Converged(converged, _) => krylov.schedule_check(converged, checker.nev),
+                Check::Converged(converged, _) => krylov.schedule_check(converged),
             }
             if krylov.fits(&block) {
                 krylov.append(block);
@@ -244,6 +252,8 @@ mod tests {
         let room = FirstRoom {
             rigid: 12,
             below: 2 * low_count + 12,
+            rigid_expected: 6,
+            below_expected: low_count + 6,
         };
         let first_options = options(ModeCount::Below(low));
         let mut iteration = Iteration::start(&ops, &first_options, room).expect("start");
@@ -253,7 +263,7 @@ mod tests {
         assert_eq!(first.eigenvalues.len(), low_count);
         let first_len = iteration.krylov.basis.len;
         let second_options = options(ModeCount::Below(high));
-        iteration.make_room(&ops, 2 * high_count + 12);
+        iteration.make_room(&ops, 2 * high_count + 12, high_count + 6);
         let second = iteration
             .run(&ops, &mut llt, shift, &second_options, Stop::NEVER)
             .expect("second request");
@@ -269,7 +279,7 @@ mod tests {
         // iteration asked the second request alone.
         assert_eq!(second.iterations, 0, "no restart");
         let mut fresh = Iteration::start(&ops, &second_options, room).expect("start");
-        fresh.make_room(&ops, 2 * high_count + 12);
+        fresh.make_room(&ops, 2 * high_count + 12, high_count + 6);
         fresh
             .run(&ops, &mut llt, shift, &second_options, Stop::NEVER)
             .expect("fresh request");
