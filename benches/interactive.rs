@@ -248,7 +248,7 @@ fn max_relative_difference(a: &ModeBasis, b: &ModeBasis) -> f64 {
 fn export_for_scipy(dir: &std::path::Path) {
     /// Problems under this many DOFs are timed as the best of three runs, on both sides.
     const REPEATED_BELOW_DOFS: usize = 10_000;
-    use modalforge::fem::sparse::{mass_as_blocks, shifted_upper_csc};
+    use modalforge::fem::sparse::{mass_as_blocks, permuted_shifted_csc};
     use std::io::Write;
     std::fs::create_dir_all(dir).expect("output folder");
     let mut csv = std::fs::File::create(dir.join("ours.csv")).expect("ours.csv");
@@ -266,8 +266,16 @@ fn export_for_scipy(dir: &std::path::Path) {
         let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, nu).expect("model");
         // The mass as 3x3 blocks, for the same CSC writer (`K - 0 M` is `K`).
         let mass_blocks = mass_as_blocks(&model.m);
+        let in_order: Vec<usize> = (0..model.nodes()).collect();
         for (which, a) in [("K", &model.k), ("M", &mass_blocks)] {
-            let upper = shifted_upper_csc(&model.pattern, a, &model.m, 0.0);
+            let upper = permuted_shifted_csc(
+                &model.pattern,
+                a,
+                &model.m,
+                0.0,
+                &in_order,
+                faer::Side::Upper,
+            );
             let path = dir.join(format!("{name}-{which}.mtx"));
             let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("mtx"));
             let n = upper.nrows();

@@ -12,7 +12,6 @@ use crate::fem::sparse::BlockPattern;
 use crate::fem::sparse::RowBlock;
 use crate::fem::{ordering, sparse, FemModel};
 use faer::dyn_stack::MemStack;
-use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
     SymmetricOrdering,
@@ -127,32 +126,37 @@ impl ShiftedCholesky {
         kept: Option<&SymbolicMemo>,
     ) -> Result<Self, EigenError> {
         let fail = |e: &dyn std::fmt::Debug| EigenError::Factorization(format!("{e:?}"));
-        let a = sparse::shifted_upper_csc(pattern, k, m, shift);
-        let n = a.nrows();
+        // The matrix comes permuted into the elimination order (`nodes`), so faer factors it
+        // as it is instead of permuting a copy first. fwd[k] = the DOF eliminated k-th; inv
+        // is its inverse.
+        let fwd: Vec<usize> = nodes
+            .iter()
+            .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
+            .collect();
+        let n = fwd.len();
+        let mut inv = vec![0usize; n];
+        for (k, &d) in fwd.iter().enumerate() {
+            inv[d] = k;
+        }
+        let a = sparse::permuted_shifted_csc(pattern, k, m, shift, nodes, Side::Lower);
         let analyse = || {
-            // fwd[k] = the DOF eliminated k-th; inv is its inverse.
-            let fwd: Vec<usize> = nodes
-                .iter()
-                .flat_map(|&v| [3 * v, 3 * v + 1, 3 * v + 2])
-                .collect();
-            let mut inv = vec![0usize; n];
-            for (k, &d) in fwd.iter().enumerate() {
-                inv[d] = k;
-            }
-            let perm = PermRef::new_checked(&fwd, &inv, n);
+            // The symbolic analysis reads the upper triangle.
+            let upper = sparse::permuted_shifted_csc(pattern, k, m, shift, nodes, Side::Upper);
             // Always supernodal (faer would pick its simplicial factor for the sparsest
             // objects): the solves in `rows` read the supernodal layout.
             let params = CholeskySymbolicParams {
                 supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
                 ..Default::default()
             };
-            factorize_symbolic_cholesky(
-                a.symbolic(),
+            let symbolic = factorize_symbolic_cholesky(
+                upper.symbolic(),
                 Side::Upper,
-                SymmetricOrdering::Custom(perm),
+                SymmetricOrdering::Identity,
                 params,
             )
-            .map_err(|e| fail(&e))
+            .map_err(|e| fail(&e));
+            recycle_csc(upper);
+            symbolic
         };
         let symbolic = match kept {
             Some(memo) => {
@@ -197,25 +201,18 @@ impl ShiftedCholesky {
         let factored = symbolic.factorize_numeric_llt(
             &mut values,
             a.as_ref(),
-            Side::Upper,
+            Side::Lower,
             Default::default(),
             par,
             MemStack::new_any(&mut fac_scratch.spare_capacity_mut()[..scratch_len]),
             Default::default(),
         );
         buffer::recycle(fac_scratch);
-        let (a_pattern, a_values) = a.into_parts();
-        buffer::recycle(a_values);
-        buffer::recycle(a_pattern.into_parts().4);
+        recycle_csc(a);
         factored.map_err(|e| fail(&e))?;
         let (layout, packed) =
             SupernodalRows::new(supernodal, &values).map_err(|e| EigenError::Factorization(e.0))?;
         buffer::recycle(values);
-        // The elimination order faer used (ours, possibly refined by its postordering).
-        let (fwd, inv) = match symbolic.perm() {
-            Some(p) => (p.arrays().0.to_vec(), p.arrays().1.to_vec()),
-            None => ((0..n).collect(), (0..n).collect()),
-        };
         Ok(ShiftedCholesky {
             dofs: n,
             values: packed,
@@ -282,6 +279,13 @@ impl ShiftedCholesky {
             _ => layout.solve::<1>(values, x.as_chunks_mut::<1>().0),
         }
     }
+}
+
+/// Hands a matrix's row indices and values back to the process's kept buffers.
+fn recycle_csc(a: faer::sparse::SparseColMat<usize, f64>) {
+    let (pattern, values) = a.into_parts();
+    buffer::recycle(values);
+    buffer::recycle(pattern.into_parts().4);
 }
 
 /// Where a solve's right-hand sides come from and its solution goes: DOF `i`'s entries in

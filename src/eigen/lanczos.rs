@@ -442,6 +442,9 @@ struct Krylov {
     /// Pairs the checks are scheduled for: those a request is expected to hold, which for a
     /// symmetry class is far fewer than the room its basis keeps.
     aim: usize,
+    /// The capacity the basis grows to, a block at a time, before it restarts: it starts at
+    /// what `aim` pairs need, so a class's basis sized for its worst case is not all mapped.
+    room: usize,
     /// State of the random blocks that replace a block lost to breakdown.
     seed: u64,
     /// The block size asked for (a block can come out narrower after a breakdown).
@@ -449,9 +452,14 @@ struct Krylov {
 }
 
 impl Krylov {
-    /// A basis of capacity `cap` started from an M-orthonormalised random block of `b`, its
-    /// checks scheduled for `aim` pairs.
-    fn start(ops: &Operators, cap: usize, b: usize, aim: usize) -> Result<Self, EigenError> {
+    /// A basis of capacity `cap` (to grow up to `room`) started from an M-orthonormalised
+    /// random block of `b`, its checks scheduled for `aim` pairs.
+    fn start(
+        ops: &Operators,
+        (cap, room): (usize, usize),
+        b: usize,
+        aim: usize,
+    ) -> Result<Self, EigenError> {
         let n = ops.dofs();
         let mut basis = Basis::new(n, cap);
         let mut seed = 1u64;
@@ -472,6 +480,7 @@ impl Krylov {
             fresh: 0..b,
             next_check: first_check(aim, b),
             aim,
+            room: room.max(cap),
             seed,
             block: b,
         })
@@ -513,7 +522,7 @@ impl Krylov {
                     Check::Converged(converged, _) => self.schedule_check(converged),
                 }
             }
-            if !self.fits(&block) {
+            if !self.make_fit(&block) {
                 return Ok(Expanded::Full(block));
             }
             self.append(block);
@@ -526,9 +535,15 @@ impl Krylov {
         self.next_check = len + vectors_before_next_check(len, converged, self.aim, self.block);
     }
 
-    /// Whether the basis has room for `block`.
-    fn fits(&self, block: &Residual) -> bool {
-        self.basis.len + block.q.ncols() <= self.basis.cap()
+    /// Whether the basis has room for `block`, growing it by half (within `room`) where it
+    /// has not.
+    fn make_fit(&mut self, block: &Residual) -> bool {
+        let need = self.basis.len + block.q.ncols();
+        if need > self.basis.cap() && need <= self.room {
+            let cap = (self.basis.cap() * 3 / 2).next_multiple_of(self.block);
+            self.grow(cap.clamp(need, self.room));
+        }
+        need <= self.basis.cap()
     }
 
     /// Appends the next block (its coefficients along the basis are in `h` already): it

@@ -6,6 +6,7 @@
 //! ([`MassBlocks`]): every finite-element mass block is `m_ab I3`.
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::Side;
 
 mod lattice;
 mod mass;
@@ -156,24 +157,35 @@ pub fn norm_inf(pattern: &BlockPattern, a: &[[f64; 9]]) -> f64 {
     worst
 }
 
-/// The upper triangle of `K - shift M` as a DOF-level `faer` CSC matrix (what its sparse
-/// Cholesky reads).
-pub fn shifted_upper_csc(
+/// One triangle of `P (K - shift M) P^T` as a DOF-level `faer` CSC matrix, `P` the node
+/// permutation that puts node `nodes[j]` `j`-th (its DOFs at `3 j + c`): the matrix a sparse
+/// Cholesky factors in that order, given already permuted so that `faer` does not permute it
+/// again. The lower triangle is what its supernodal numeric factorisation reads (a column's
+/// rows unsorted, as its own permutation leaves them), the upper what its symbolic analysis
+/// reads. Entry `(3 i + d, 3 j + c)` is `K(b, a)[d][c] = K(a, b)[c][d]` for `a = nodes[j]`,
+/// `b = nodes[i]`, read from row `a`'s blocks.
+pub fn permuted_shifted_csc(
     pattern: &BlockPattern,
     k: &[[f64; 9]],
     m: &[f64],
     shift: f64,
+    nodes: &[usize],
+    side: Side,
 ) -> SparseColMat<usize, f64> {
     let n = pattern.nodes();
-    // Entries in the upper triangle: 9 a block above the diagonal, 6 a diagonal block. The
-    // entries come from the process's kept buffers (`crate::buffer`), and go back there once
-    // the factorisation has read them.
+    assert_eq!(nodes.len(), n, "one position per node");
+    let mut position = vec![0u32; n];
+    for (j, &a) in nodes.iter().enumerate() {
+        position[a] = j as u32;
+    }
+    // 9 entries a block off the diagonal and 6 a diagonal block in either triangle (the
+    // pattern is symmetric); from the process's kept buffers (`crate::buffer`), to go back
+    // there once the factorisation has read them.
     let entries = (0..n)
         .map(|a| {
             let row = &pattern.col[pattern.row_ptr[a]..pattern.row_ptr[a + 1]];
-            let upper = row.partition_point(|&b| (b as usize) <= a);
-            let diagonal = usize::from(upper > 0 && row[upper - 1] as usize == a);
-            9 * upper - 3 * diagonal
+            let diagonal = row.binary_search(&(a as u32)).is_ok();
+            9 * (row.len() - usize::from(diagonal)) / 2 + 6 * usize::from(diagonal)
         })
         .sum::<usize>();
     let mut col_ptr = Vec::with_capacity(3 * n + 1);
@@ -182,17 +194,20 @@ pub fn shifted_upper_csc(
     row_idx.reserve_exact(entries);
     val.reserve_exact(entries);
     col_ptr.push(0);
-    for a in 0..n {
+    let lower = side == Side::Lower;
+    for (j, &a) in nodes.iter().enumerate() {
+        let row = pattern.row_ptr[a]..pattern.row_ptr[a + 1];
         for c in 0..3 {
-            // Column 3a + c holds A[3b + d, 3a + c] = block(a, b)[c][d] for rows 3b + d <= 3a + c.
-            for blk in pattern.row_ptr[a]..pattern.row_ptr[a + 1] {
-                let b = pattern.col[blk] as usize;
-                if b > a {
-                    break;
-                }
-                let dmax = if b == a { c + 1 } else { 3 };
-                for d in 0..dmax {
-                    row_idx.push(3 * b + d);
+            for blk in row.clone() {
+                let i = position[pattern.col[blk] as usize] as usize;
+                let ds = match (i.cmp(&j), lower) {
+                    (std::cmp::Ordering::Equal, true) => c..3,
+                    (std::cmp::Ordering::Equal, false) => 0..c + 1,
+                    (std::cmp::Ordering::Greater, true) | (std::cmp::Ordering::Less, false) => 0..3,
+                    _ => continue,
+                };
+                for d in ds {
+                    row_idx.push(3 * i + d);
                     let mass = if c == d { m[blk] } else { 0.0 };
                     val.push(k[blk][3 * c + d] - shift * mass);
                 }
@@ -200,13 +215,78 @@ pub fn shifted_upper_csc(
             col_ptr.push(row_idx.len());
         }
     }
-    let symbolic = SymbolicSparseColMat::new_checked(3 * n, 3 * n, col_ptr, None, row_idx);
+    debug_assert_eq!(row_idx.len(), entries);
+    let symbolic = SymbolicSparseColMat::new_unsorted_checked(3 * n, 3 * n, col_ptr, None, row_idx);
     SparseColMat::new(symbolic, val)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Both triangles of the permuted matrix, entry by entry, against `P (K - shift M) P^T`
+    /// formed densely from the blocks: every structural entry of the triangle once, at its
+    /// permuted place, with the same value (the same arithmetic, so equal to the bit).
+    #[test]
+    fn the_permuted_triangles_are_those_of_the_permuted_matrix() {
+        use crate::fem::{ElementKind, FemModel};
+        use crate::shape::spec::ShapeSpec;
+        let ShapeSpec::Primitive { shape, .. } = "box:x=3,y=2,z=2".parse().expect("spec") else {
+            panic!("a primitive")
+        };
+        let grid = shape.rasterize(1.0, 1.0).expect("grid");
+        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).expect("model");
+        let (nodes, shift) = (model.nodes(), -0.25);
+        let n = 3 * nodes;
+        // Row `a` of the block matrix at (3a + c, 3b + d); `None` off the pattern.
+        let mut dense = vec![None; n * n];
+        for a in 0..nodes {
+            for blk in model.pattern.row_ptr[a]..model.pattern.row_ptr[a + 1] {
+                let b = model.pattern.col[blk] as usize;
+                for (c, d) in (0..3).flat_map(|c| (0..3).map(move |d| (c, d))) {
+                    let mass = if c == d { model.m[blk] } else { 0.0 };
+                    dense[(3 * a + c) * n + 3 * b + d] =
+                        Some(model.k[blk][3 * c + d] - shift * mass);
+                }
+            }
+        }
+        // A scrambled elimination order: `order[j]` is eliminated j-th.
+        let order: Vec<usize> = (0..nodes).map(|j| (j * 7 + 3) % nodes).collect();
+        assert_eq!(
+            order
+                .iter()
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+            nodes
+        );
+        let dof = |j: usize| 3 * order[j / 3] + j % 3;
+        for side in [Side::Lower, Side::Upper] {
+            let a = permuted_shifted_csc(&model.pattern, &model.k, &model.m, shift, &order, side);
+            for col in 0..n {
+                let range = a.symbolic().col_range(col);
+                let mut rows: Vec<usize> = a.symbolic().row_idx()[range.clone()].to_vec();
+                for (&row, &value) in rows.iter().zip(&a.val()[range]) {
+                    assert_eq!(
+                        dense[dof(row) * n + dof(col)],
+                        Some(value),
+                        "{side:?} ({row}, {col})"
+                    );
+                }
+                rows.sort_unstable();
+                let want: Vec<usize> = (0..n)
+                    .filter(|&row| {
+                        if side == Side::Lower {
+                            row >= col
+                        } else {
+                            row <= col
+                        }
+                    })
+                    .filter(|&row| dense[dof(row) * n + dof(col)].is_some())
+                    .collect();
+                assert_eq!(rows, want, "{side:?} column {col}");
+            }
+        }
+    }
 
     #[test]
     fn the_pattern_holds_exactly_the_pairs_that_share_an_element() {

@@ -61,7 +61,12 @@ impl Iteration {
             ModeCount::Below(_) => (room.below, room.below_expected),
         };
         Ok(Iteration {
-            krylov: Krylov::start(ops, basis_cap(nev, b, n), b, aim.min(nev))?,
+            krylov: Krylov::start(
+                ops,
+                (basis_cap(aim.min(nev), b, n), basis_cap(nev, b, n)),
+                b,
+                aim.min(nev),
+            )?,
             nev,
             restarts: 0,
             band: Some(b),
@@ -69,15 +74,15 @@ impl Iteration {
         })
     }
 
-    /// Checks at least `pairs` pairs (rigid ones included) from now on, growing the basis
-    /// for them, and schedules the checks for `aim` of them: for a second request that
+    /// Checks at least `pairs` pairs (rigid ones included) from now on, letting the basis
+    /// grow for them, and schedules the checks for `aim` of them: for a second request that
     /// expects more pairs than the first.
     pub fn make_room(&mut self, ops: &Operators, pairs: usize, aim: usize) {
         self.krylov.aim = self.krylov.aim.max(aim.min(pairs));
         if pairs > self.nev {
             self.nev = pairs;
             let b = self.krylov.block;
-            self.krylov.grow(basis_cap(pairs, b, ops.dofs()));
+            self.krylov.room = self.krylov.room.max(basis_cap(pairs, b, ops.dofs()));
         }
     }
 
@@ -117,7 +122,7 @@ impl Iteration {
                 }
                 Check::Converged(converged, _) => krylov.schedule_check(converged),
             }
-            if krylov.fits(&block) {
+            if krylov.make_fit(&block) {
                 krylov.append(block);
             } else {
                 full = Some(block);
@@ -172,7 +177,8 @@ impl Iteration {
                     wanted: nev,
                 });
             }
-            krylov.grow(basis_cap(nev, b, n));
+            krylov.room = krylov.room.max(basis_cap(nev, b, n));
+            krylov.grow(krylov.room);
             krylov.restart(&ritz, &full, nev, converged_count);
             self.restarts += 1;
         }
