@@ -17,6 +17,7 @@ pub mod memo;
 pub mod ordering;
 pub mod sparse;
 
+use crate::shape::fill::{FULL, SUBCELLS_PER_AXIS};
 use crate::shape::{lattice_coords, lattice_index, FillLookup, VoxelFill};
 pub use cache::ElementCache;
 pub use element::{ElementKind, UnitElement};
@@ -79,7 +80,19 @@ impl FemModel {
         grid: &VoxelGrid,
         kind: ElementKind,
         poisson_ratio: f64,
+        cache: Option<&mut ElementCache>,
+    ) -> Result<Self, ShapeError> {
+        Self::assemble_with(grid, kind, poisson_ratio, cache, true)
+    }
+
+    /// [`FemModel::assemble_cached`], with the cut elements' orbits shared or each cut
+    /// element integrated on its own (`share_orbits`, for the tests' reference).
+    fn assemble_with(
+        grid: &VoxelGrid,
+        kind: ElementKind,
+        poisson_ratio: f64,
         mut cache: Option<&mut ElementCache>,
+        share_orbits: bool,
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
@@ -157,14 +170,22 @@ impl FemModel {
         let mut key = Vec::new();
         // Cut elements whose fills are images of each other under a symmetry of the cube share
         // one integration ([`cut::symmetry`]): the batch's orbits, and the mapped matrices.
-        // Only for the linear elements: the quadratic ones' refined fills come from
-        // floating-point plane fits that are symmetric only to rounding, so their orbits do not
-        // match (175 orbits for 176 cut hex27x2 blocks of the 16-voxel bowl), and ordering
-        // their 512-4096 weights costs more than it could save.
+        // The linear elements' orbits are those of their sub-cell weights. A hex27x2 block's
+        // refined fill comes from floating-point plane fits that are symmetric only to
+        // rounding (175 orbits for 176 cut blocks of the 16-voxel bowl), so its orbit is that
+        // of its input instead, the sub-cell bytes of its voxels and their ring (the images'
+        // matrices then differ from their own integration by rounding), oriented by its
+        // moments: ordering 4096 weights 48 ways would cost more than it saves.
+        let by_input = share_orbits && p == 2 && block > 1;
+        let input_side = (block + 2 * usize::from(halo)) * SUBCELLS_PER_AXIS;
+        let mut input = vec![0u8; if by_input { input_side.pow(3) } else { 0 }];
         let mut orbits = cut
             .as_ref()
-            .filter(|_| p == 1)
-            .map(|c| cut::symmetry::Orbits::new(p + 1, c.per_axis()));
+            .filter(|_| share_orbits && (p == 1 || by_input))
+            .map(|c| {
+                let cells = if by_input { input_side } else { c.per_axis() };
+                cut::symmetry::Orbits::new(p + 1, cells)
+            });
         let mut mapped = ElementBlocks::zeros(nloc);
         // Only refined fills (each reads its 26 neighbours) and hex27x2 blocks (8 voxels each)
         // look fills up by voxel; the others read the element's own fill.
@@ -239,14 +260,34 @@ impl FemModel {
                 batch.keys[at].clone_from(&key);
             }
             let at = batch.elements.len() * subcells;
-            let out = &mut batch.fills[at..at + subcells];
-            match partial {
+            let fills = at..at + subcells;
+            let gather = |out: &mut [f64], voxel_fill: &mut [f64]| match partial {
                 Some(fill) => voxel_subcells(&voxel_fills, *v, fill, out),
-                None => gather_block_fill(&voxel_fills, *v, block, per_voxel, &mut voxel_fill, out),
+                None => gather_block_fill(&voxel_fills, *v, block, per_voxel, voxel_fill, out),
+            };
+            // The fill is gathered before its orbit is found from it, or after one found from
+            // the block's input says it is needed.
+            let found = match orbits.as_mut() {
+                Some(orbits) if by_input => {
+                    block_input(&voxel_fills, *v, block, halo, &mut input);
+                    Some(orbits.find_input(&input))
+                }
+                Some(orbits) => {
+                    let out = &mut batch.fills[fills.clone()];
+                    gather(out, &mut voxel_fill);
+                    out.iter_mut().for_each(|w| *w = cut::subcell_weight(*w));
+                    Some(orbits.find(out))
+                }
+                None => {
+                    gather(&mut batch.fills[fills.clone()], &mut voxel_fill);
+                    None
+                }
+            };
+            if by_input && !matches!(found, Some(cut::symmetry::Found::Seen { .. })) {
+                gather(&mut batch.fills[fills], &mut voxel_fill);
             }
-            if let Some(orbits) = orbits.as_mut() {
-                out.iter_mut().for_each(|w| *w = cut::subcell_weight(*w));
-                match orbits.find(out) {
+            if let (Some(orbits), Some(found)) = (orbits.as_mut(), found) {
+                match found {
                     cut::symmetry::Found::New { orbit, g } => batch.orbits.push(Some((orbit, g))),
                     cut::symmetry::Found::Unkept => batch.orbits.push(None),
                     cut::symmetry::Found::Seen { orbit, g } => {
@@ -441,6 +482,40 @@ fn fill_fingerprint(fills: impl IntoIterator<Item = VoxelFill>) -> u64 {
 }
 
 /// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
+/// The input of block `cell`'s cut element: the sub-cell bytes of its `block^3` voxels from
+/// `cell * block` and, with `halo`, of their one-voxel ring (0 for an empty or out-of-grid
+/// voxel, [`FULL`] for a full one, a partial one's [`crate::shape::SubFill`]), x fastest, into
+/// `out`. Its refined fill is a function of this alone, and its orbit is found from it
+/// ([`cut::symmetry::Orbits::find_input`]).
+fn block_input(fills: &FillLookup, cell: [usize; 3], block: usize, halo: bool, out: &mut [u8]) {
+    let n = SUBCELLS_PER_AXIS;
+    let h = isize::from(halo);
+    let voxels = block + 2 * usize::from(halo);
+    let side = voxels * n;
+    for vz in 0..voxels {
+        for vy in 0..voxels {
+            for vx in 0..voxels {
+                let at = |o: usize, c: usize| (c * block) as isize - h + o as isize;
+                let fill = fills.fill_at(at(vx, cell[0]), at(vy, cell[1]), at(vz, cell[2]));
+                for sz in 0..n {
+                    for sy in 0..n {
+                        let row = vx * n + side * (vy * n + sy + side * (vz * n + sz));
+                        let out = &mut out[row..row + n];
+                        match &fill {
+                            VoxelFill::Empty => out.fill(0),
+                            VoxelFill::Full => out.fill(FULL),
+                            VoxelFill::Partial(f) => {
+                                let from = n * (sy + n * sz);
+                                out.copy_from_slice(&f.0[from..from + n]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// `block^3` voxels from `cell * block` into `out`: a full voxel's sub-cells are 1, an empty or
 /// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
 /// per axis (or refined, [`voxel_subcells`]).
@@ -507,4 +582,41 @@ pub fn auto_resolution(
     let by_wave = (size_m / h).ceil();
     let by_wall = (2.0 / thinnest_fraction).ceil();
     by_wave.max(by_wall).clamp(8.0, 96.0) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ElementKind, FemModel};
+    use crate::shape::spec::ShapeSpec;
+
+    /// The hex27x2 cut blocks of a curved object share their orbit's integration (the 16-voxel
+    /// bowl's mirrors and quarter turn make orbits of up to 8); the independent truth is
+    /// every cut block integrated on its own. A mapped block is its orbit's first block's
+    /// matrices rotated, and a block's refined fill is symmetric to its image's only to the
+    /// rounding of the plane fits: equal to 1e-12 of the largest entry. An orbit that took
+    /// in a block whose input is not an image would be off by that block's matrices, tens
+    /// of percent of an entry.
+    #[test]
+    fn hex27x2_blocks_that_share_an_orbit_assemble_as_integrated_alone() {
+        for spec in ["bowl:d=16,wall=2", "sphere:d=16"] {
+            let ShapeSpec::Primitive { shape, .. } = spec.parse().expect("spec") else {
+                panic!("a primitive")
+            };
+            let grid = shape.rasterize(1.0, 1.0).expect("grid");
+            let kind = ElementKind::Hex27Blocks;
+            let shared = FemModel::assemble_with(&grid, kind, 0.3, None, true).expect("model");
+            let alone = FemModel::assemble_with(&grid, kind, 0.3, None, false).expect("model");
+            assert_eq!(shared.pattern.col, alone.pattern.col);
+            let scale = alone.k.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
+            let dk = (shared.k.iter().flatten())
+                .zip(alone.k.iter().flatten())
+                .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+            assert!(dk <= 1e-12 * scale, "{spec}: K off by {dk:e} of {scale:e}");
+            let scale = alone.m.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+            let dm = (shared.m.iter())
+                .zip(&alone.m)
+                .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+            assert!(dm <= 1e-12 * scale, "{spec}: M off by {dm:e} of {scale:e}");
+        }
+    }
 }

@@ -26,6 +26,9 @@ use crate::fem::sparse::ElementBlocks;
 use crate::shape::{lattice_coords, lattice_index};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::Arc;
+
+use crate::fem::memo::Memo;
 
 /// One symmetry of the cube, as it acts on one element kind's sub-cells and nodes.
 #[derive(Clone, Debug)]
@@ -45,6 +48,8 @@ struct Symmetry {
 #[derive(Clone, Debug)]
 pub struct Symmetries {
     ops: Vec<Symmetry>,
+    /// Sub-cells per axis.
+    cells: usize,
 }
 
 /// Lattice point `c` (`n` per axis, x fastest) mapped by the signed axis permutation.
@@ -116,7 +121,7 @@ impl Symmetries {
                 .position(|&m| m == inverse)
                 .expect("the symmetries form a group");
         }
-        Symmetries { ops }
+        Symmetries { ops, cells: s }
     }
 
     /// Number of symmetries (48).
@@ -148,6 +153,53 @@ impl Symmetries {
     /// The inverse of symmetry `g`.
     pub fn inverse(&self, g: usize) -> usize {
         self.ops[g].inverse
+    }
+
+    /// The symmetries that orient `input` by its first moments about the centre: the
+    /// image's moments are non-negative and descending along x, y, z (its moment along axis
+    /// `k` is `s_k` times the original's along `sigma(k)`). One where the moments are nonzero
+    /// and differ in size; where one is zero, or two are equal in size (an element symmetric,
+    /// or nearly, under a mirror or a swap), each choice. Integer sums: two images'
+    /// orientations agree exactly.
+    fn orienting(&self, input: &[u8]) -> impl Iterator<Item = usize> + use<> {
+        let s = self.cells;
+        let mut moments = [0i64; 3];
+        let centred = |c: usize| 2 * c as i64 + 1 - s as i64;
+        for (z, plane) in input.chunks_exact(s * s).enumerate() {
+            for (y, row) in plane.chunks_exact(s).enumerate() {
+                let (mut sum, mut first) = (0i64, 0i64);
+                for (x, &w) in row.iter().enumerate() {
+                    sum += i64::from(w);
+                    first += i64::from(w) * centred(x);
+                }
+                moments[0] += first;
+                moments[1] += sum * centred(y);
+                moments[2] += sum * centred(z);
+            }
+        }
+        // `new` lists the moves permutation by permutation, eight sign patterns each.
+        (0..48).filter(move |g| {
+            let sigma = crate::shape::PERMS[g / 8];
+            let image: [i64; 3] = std::array::from_fn(|k| {
+                let sign = if (g % 8) >> k & 1 == 1 { -1 } else { 1 };
+                sign * moments[sigma[k]]
+            });
+            image[0] >= image[1] && image[1] >= image[2] && image[2] >= 0
+        })
+    }
+
+    /// The image of `input` under symmetry `g` into `out`.
+    fn map_input(&self, g: usize, input: &[u8], out: &mut Vec<u8>) {
+        out.clear();
+        out.extend(self.ops[g].pull.iter().map(|&from| input[from as usize]));
+    }
+
+    /// The symmetries for `nodes_per_axis` and `subcells_per_axis`, made once per process.
+    pub fn shared(nodes_per_axis: usize, subcells_per_axis: usize) -> Arc<Self> {
+        static KEPT: Memo<(usize, usize), Symmetries> = Memo::new();
+        KEPT.get_or_make((nodes_per_axis, subcells_per_axis), || {
+            Self::new(nodes_per_axis, subcells_per_axis)
+        })
     }
 
     /// The symmetry among `candidates` that maps `weights` to the smallest image in
@@ -233,23 +285,31 @@ pub const MAX_ORBIT_BYTES: usize = 64 << 20;
 /// The orbits of one assembly's cut elements and the matrices of their canonical fills.
 #[derive(Debug)]
 pub struct Orbits {
-    symmetries: Symmetries,
+    symmetries: Arc<Symmetries>,
     /// The symmetries whose image starts with sub-cell `c`'s weight, per `c`.
     starting_at: Vec<Vec<usize>>,
+    /// The orbits by canonical sub-cell weights ([`Orbits::find`]) and by canonical input
+    /// ([`Orbits::find_input`]).
     index: HashMap<Box<[u64]>, usize, BuildHasherDefault<KeyHasher>>,
+    by_input: HashMap<Box<[u8]>, usize, BuildHasherDefault<KeyHasher>>,
+    /// Inputs as they were seen, with their orbit and symmetry.
+    inputs: HashMap<Box<[u8]>, (usize, usize), BuildHasherDefault<KeyHasher>>,
     /// Per orbit: the canonical fill's matrices, once integrated.
     kept: Vec<Option<ElementBlocks>>,
     /// Bytes the orbits take, and the most they may.
     bytes: usize,
     budget: usize,
     key: Vec<u64>,
+    /// The canonical input, and an image being compared with it.
+    key_bytes: Vec<u8>,
+    image: Vec<u8>,
 }
 
 impl Orbits {
     /// No orbits yet, for elements with `nodes_per_axis` nodes and `subcells_per_axis`
     /// sub-cells per axis.
     pub fn new(nodes_per_axis: usize, subcells_per_axis: usize) -> Self {
-        let symmetries = Symmetries::new(nodes_per_axis, subcells_per_axis);
+        let symmetries = Symmetries::shared(nodes_per_axis, subcells_per_axis);
         let mut starting_at = vec![Vec::new(); subcells_per_axis.pow(3)];
         for (g, op) in symmetries.ops.iter().enumerate() {
             starting_at[op.pull[0] as usize].push(g);
@@ -258,10 +318,14 @@ impl Orbits {
             symmetries,
             starting_at,
             index: HashMap::default(),
+            by_input: HashMap::default(),
+            inputs: HashMap::default(),
             kept: Vec::new(),
             bytes: 0,
             budget: MAX_ORBIT_BYTES,
             key: Vec::new(),
+            key_bytes: Vec::new(),
+            image: Vec::new(),
         }
     }
 
@@ -271,6 +335,47 @@ impl Orbits {
             budget: bytes,
             ..self
         }
+    }
+
+    /// The orbit of an element whose input is `input` (the sub-cell bytes of a hex27x2
+    /// block's voxels and their ring): the smallest image among those its first moments
+    /// orient ([`Symmetries::orienting`]), one for most elements, not among all 48: ordering
+    /// 4096 bytes 48 ways would cost more than an integration.
+    pub fn find_input(&mut self, input: &[u8]) -> Found {
+        // An input seen before as it is (a plate's blocks, a tube's along its length): its
+        // orbit without the search.
+        if let Some(&(orbit, g)) = self.inputs.get(input) {
+            return Found::Seen { orbit, g };
+        }
+        let found = self.find_input_image(input);
+        if let Found::New { orbit, g } | Found::Seen { orbit, g } = found {
+            if self.bytes + input.len() <= self.budget {
+                self.bytes += input.len();
+                self.inputs.insert(input.into(), (orbit, g));
+            }
+        }
+        found
+    }
+
+    /// [`Orbits::find_input`] for an input not seen as it is.
+    fn find_input_image(&mut self, input: &[u8]) -> Found {
+        let mut best = usize::MAX;
+        for g in self.symmetries.orienting(input) {
+            self.symmetries.map_input(g, input, &mut self.image);
+            if best == usize::MAX || self.image < self.key_bytes {
+                best = g;
+                std::mem::swap(&mut self.image, &mut self.key_bytes);
+            }
+        }
+        if let Some(&orbit) = self.by_input.get(self.key_bytes.as_slice()) {
+            return Found::Seen { orbit, g: best };
+        }
+        let Some(orbit) = self.new_orbit(self.key_bytes.len()) else {
+            return Found::Unkept;
+        };
+        self.by_input
+            .insert(self.key_bytes.as_slice().into(), orbit);
+        Found::New { orbit, g: best }
     }
 
     /// The orbit of a cut element whose sub-cell weights (as the integration uses them,
@@ -290,18 +395,25 @@ impl Orbits {
         if let Some(&orbit) = self.index.get(self.key.as_slice()) {
             return Found::Seen { orbit, g };
         }
+        let Some(orbit) = self.new_orbit(8 * self.key.len()) else {
+            return Found::Unkept;
+        };
+        self.index.insert(self.key.as_slice().into(), orbit);
+        Found::New { orbit, g }
+    }
+
+    /// A new orbit whose key takes `key_bytes`, or `None` past the budget.
+    fn new_orbit(&mut self, key_bytes: usize) -> Option<usize> {
         // The key, the canonical matrices (a 3x3 block and a mass per node pair) and the
         // vectors' and map's own words.
         let pairs = self.symmetries.ops[0].pairs.len();
-        let bytes = 8 * self.key.len() + 80 * pairs + 96;
+        let bytes = key_bytes + 80 * pairs + 96;
         if self.bytes + bytes > self.budget {
-            return Found::Unkept;
+            return None;
         }
         self.bytes += bytes;
-        let orbit = self.kept.len();
-        self.index.insert(self.key.as_slice().into(), orbit);
         self.kept.push(None);
-        Found::New { orbit, g }
+        Some(self.kept.len() - 1)
     }
 
     /// Keeps the matrices of the orbit's first element (`g` maps its fill to the canonical
@@ -385,6 +497,51 @@ mod tests {
                 assert_eq!(back, original, "{kind:?} symmetry {g}");
             }
         }
+    }
+
+    /// Orbits found from a block's input bytes (hex27x2): every image of an input, by all 48
+    /// symmetries, is found in the input's orbit and reaches the same canonical input; so
+    /// does an input symmetric under a mirror and a swap (its moments tie: several orienting
+    /// symmetries, the smallest image among them); another input is another orbit, and an
+    /// input seen again as it is comes back with its first finding.
+    #[test]
+    fn images_of_an_input_share_one_orbit() {
+        let symmetries = Symmetries::new(3, 4);
+        let asymmetric: Vec<u8> = (0..64u32).map(|i| (i * 37 % 11 * 23) as u8).collect();
+        // Symmetric in x (mirror) and under the x-y swap.
+        let symmetric: Vec<u8> = (0..64usize)
+            .map(|i| {
+                let [x, y, z] = lattice_coords(i, [4; 3]);
+                let (a, b) = (x.min(3 - x), y.min(3 - y));
+                (10 * (a + b) + 3 * z + a * b) as u8
+            })
+            .collect();
+        let mut orbits = Orbits::new(3, 4);
+        for input in [&asymmetric, &symmetric] {
+            let Found::New { orbit, g } = orbits.find_input(input) else {
+                panic!("the first input is new")
+            };
+            let mut canonical = Vec::new();
+            symmetries.map_input(g, input, &mut canonical);
+            let mut image = Vec::new();
+            for h in 0..48 {
+                symmetries.map_input(h, input, &mut image);
+                let Found::Seen { orbit: o, g: gh } = orbits.find_input(&image) else {
+                    panic!("image {h} is in the orbit")
+                };
+                assert_eq!(o, orbit, "image {h}");
+                let mut again = Vec::new();
+                symmetries.map_input(gh, &image, &mut again);
+                assert_eq!(again, canonical, "image {h}");
+            }
+            assert_eq!(orbits.find_input(input), Found::Seen { orbit, g });
+        }
+        let mut other = asymmetric.clone();
+        other[5] += 1;
+        assert!(matches!(
+            orbits.find_input(&other),
+            Found::New { orbit: 2, .. }
+        ));
     }
 
     #[test]
