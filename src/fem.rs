@@ -481,7 +481,6 @@ fn fill_fingerprint(fills: impl IntoIterator<Item = VoxelFill>) -> u64 {
     fingerprint
 }
 
-/// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
 /// The input of block `cell`'s cut element: the sub-cell bytes of its `block^3` voxels from
 /// `cell * block` and, with `halo`, of their one-voxel ring (0 for an empty or out-of-grid
 /// voxel, [`FULL`] for a full one, a partial one's [`crate::shape::SubFill`]), x fastest, into
@@ -516,6 +515,7 @@ fn block_input(fills: &FillLookup, cell: [usize; 3], block: usize, halo: bool, o
     }
 }
 
+/// The sub-cell fills (x fastest, `block * per_voxel` per axis) of the element over the
 /// `block^3` voxels from `cell * block` into `out`: a full voxel's sub-cells are 1, an empty or
 /// out-of-grid one's 0, a partial one's its [`crate::shape::SubFill`] averaged to `per_voxel`
 /// per axis (or refined, [`voxel_subcells`]).
