@@ -32,8 +32,8 @@
 //! times its share (classes have about equal mode densities), or below the `k`-th lowest found
 //! once `k` are found, which bounds the whole model's `k`-th from above; a class whose answer
 //! stops below the final bound is asked again, its Lanczos iteration going on from where it
-//! stopped ([`Iteration`]: on the aluminium plate preset, 2-9 ms a class where a new solve
-//! took 14-17). The residuals are the whole model's (the classes' operators carry its norms,
+//! stopped ([`Iteration`]: on the aluminium plate preset, 4-8 ms a class where a new solve
+//! took 14-23). The residuals are the whole model's (the classes' operators carry its norms,
 //! and `||B r|| = ||r||`).
 
 mod mirrors;
