@@ -449,6 +449,33 @@ mod tests {
         }
     }
 
+    /// The packed copy of a factor writes every entry it holds, zeros included, so a kept
+    /// buffer that still holds an earlier solve's numbers packs the same factor as fresh
+    /// memory: kept buffers full of NaN are offered to the packing and the factor must come
+    /// out bit for bit. (The pool is the process's, shared with other tests; the test asks
+    /// until the packing took one of its buffers.)
+    #[test]
+    fn a_factor_packed_into_a_used_buffer_is_the_factor_packed_into_fresh_memory() {
+        let model = hex27_bowl();
+        let shift = -1e-6 * Operators::new(&model).scale;
+        let fresh = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+        let len = fresh.values.len();
+        let mut took_a_used_one = false;
+        for _ in 0..5 {
+            let used: Vec<Vec<f64>> = (0..3).map(|_| vec![f64::NAN; len]).collect();
+            let at: Vec<*const f64> = used.iter().map(|v| v.as_ptr()).collect();
+            used.into_iter().for_each(buffer::recycle);
+            let again = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+            if at.contains(&again.values.as_ptr()) {
+                took_a_used_one = true;
+                let same = fresh.values.iter().zip(&again.values);
+                assert!(same.clone().all(|(a, b)| a.to_bits() == b.to_bits()));
+                break;
+            }
+        }
+        assert!(took_a_used_one, "the packing never took a kept buffer");
+    }
+
     /// Cholesky is backward stable: the residual relative to `||A|| ||x||` is a small multiple
     /// of the unit roundoff times the factor's row lengths, whatever `A`'s condition (~1e7
     /// here), for every chunk width (11 columns = 8 + 2 + 1) and both layouts.

@@ -136,11 +136,10 @@ impl SupernodalRows {
             inv_diag,
         };
         let total = *layout.val_ptr.last().expect("nonempty");
-        let mut packed = buffer::take::<f64>(total);
-        packed
-            .try_reserve_exact(total)
+        // Every entry is written below (a short panel's missing rows as zeros), so the
+        // buffer is not cleared first.
+        let mut packed = buffer::take_unfilled::<f64>(total)
             .map_err(|_| LayoutError("out of memory for the packed factor".into()))?;
-        packed.resize(total, 0.0);
         for s in 0..count {
             let (_, nc, below) = layout.shape(s);
             let ld = nc + below.len();
@@ -151,9 +150,13 @@ impl SupernodalRows {
                 for k in 0..kc {
                     let column = &from[k * ld..(k + 1) * ld];
                     let out = &mut to[at + k * R..at + (k + 1) * R];
-                    for (i, v) in out.iter_mut().enumerate().take(span) {
-                        // Zero above the diagonal.
-                        *v = if row + i >= k { column[row + i] } else { 0.0 };
+                    for (i, v) in out.iter_mut().enumerate() {
+                        // Zero above the diagonal and below a short panel's last row.
+                        *v = if i < span && row + i >= k {
+                            column[row + i]
+                        } else {
+                            0.0
+                        };
                     }
                 }
                 at += kc * R;

@@ -31,6 +31,11 @@ use crate::eigen::band::{band_eigen, BandEigen};
 use faer::Mat;
 use std::time::Instant;
 
+/// Converged pairs whose residuals a check recomputes explicitly at least (the sentinel; a
+/// block's worth where blocks are larger): a symmetry class's blocks of four keep the whole
+/// solve's eight.
+const MIN_SENTINELS: usize = 8;
+
 /// What a convergence check found.
 pub(super) enum Check {
     /// Every wanted pair has converged: the answer.
@@ -243,7 +248,7 @@ impl RitzCheck<'_> {
         let tolerance = self.options.tolerance;
         let mut by_residual: Vec<usize> = (0..check).filter(|&j| res[j] <= tolerance).collect();
         by_residual.sort_by(|&a, &b| res[b].total_cmp(&res[a]));
-        by_residual.truncate(self.options.block_size.max(1));
+        by_residual.truncate(self.options.block_size.max(MIN_SENTINELS));
         let xs = Mat::from_fn(x.nrows(), by_residual.len(), |i, j| x[(i, by_residual[j])]);
         let ls: Vec<f64> = by_residual.iter().map(|&j| lambdas[j]).collect();
         let explicit = self.ops.block_residuals(&ls, xs.as_ref());

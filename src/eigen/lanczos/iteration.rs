@@ -116,10 +116,7 @@ impl Iteration {
         let mut full = None;
         if let Some(block) = self.pending.take() {
             match checker.run(&krylov.basis, &krylov.projected(), &block.next())? {
-                Check::Done(solution) => {
-                    self.pending = Some(block);
-                    return Ok(*solution);
-                }
+                Check::Done(solution) => return Ok(self.met(&checker, block, *solution)),
                 Check::Converged(converged, _) => krylov.schedule_check(converged),
             }
             if krylov.make_fit(&block) {
@@ -135,9 +132,7 @@ impl Iteration {
                 Some(full) => full,
                 None => match krylov.expand(ops, llt, &mut checker)? {
                     Expanded::Done(solution, block) => {
-                        (self.nev, self.band) = (checker.nev, checker.band);
-                        self.pending = Some(block);
-                        return Ok(*solution);
+                        return Ok(self.met(&checker, block, *solution))
                     }
                     Expanded::Full(full) => full,
                 },
@@ -154,11 +149,7 @@ impl Iteration {
             // vectors.
             let check = checker.nev.min(ritz.order.len());
             let rigid = match checker.verify(&krylov.basis, &ritz, check)? {
-                Check::Done(solution) => {
-                    (self.nev, self.band) = (checker.nev, checker.band);
-                    self.pending = Some(full);
-                    return Ok(*solution);
-                }
+                Check::Done(solution) => return Ok(self.met(&checker, full, *solution)),
                 Check::Converged(c, w) => {
                     (converged_count, worst) = (c, w);
                     (0..c)
@@ -187,6 +178,20 @@ impl Iteration {
             wanted: checker.nev,
             worst_residual: worst,
         })
+    }
+
+    /// Keeps what a met request leaves for a larger one (the pairs checked, whether the
+    /// projected matrix is still a band, the block that would have extended the basis) and
+    /// hands back its answer.
+    fn met(
+        &mut self,
+        checker: &RitzCheck,
+        block: Residual,
+        solution: EigenSolution,
+    ) -> EigenSolution {
+        (self.nev, self.band) = (checker.nev, checker.band);
+        self.pending = Some(block);
+        solution
     }
 }
 
