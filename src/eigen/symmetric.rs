@@ -248,9 +248,18 @@ fn solve_class(
         rigid_expected: RIGID_EXPECTED,
         below_expected: expected + RIGID_EXPECTED,
     };
+    let aim = match count {
+        ModeCount::First(k) => k + RIGID_EXPECTED,
+        ModeCount::Below(_) => expected + RIGID_EXPECTED,
+    };
+    let block_size = if aim <= SMALL_BLOCK_MAX_PAIRS {
+        options.block_size.min(SMALL_BLOCK_SIZE)
+    } else {
+        options.block_size
+    };
     let class_options = EigenOptions {
         count,
-        block_size: options.block_size.min(CLASS_BLOCK_SIZE),
+        block_size,
         ..*options
     };
     let mut iteration = Iteration::start(ops, &class_options, room)?;
@@ -300,16 +309,26 @@ const BELOW_SHARE: usize = 20;
 /// filled their bases and restarted once; with twelve none did.
 const RIGID_ROOM: usize = 12;
 
-/// Lanczos block size of a class (the whole model's is [`EigenOptions::block_size`], 8). A
-/// block Krylov space of `j` blocks holds polynomials of degree `j` only, and a class wants
-/// 10-30 pairs, not 60: with blocks of 4 the default bowl's three classes converged in 252
-/// vectors against 344 with blocks of 8, the tin can's six in 300 against 400. Cold class
-/// solves (best of 3, five interleaved rounds, median), blocks of 4 against 8: the default
-/// bowl 0.83x, the tin can 0.81x, the brass gong 0.79x, the aluminium plate 0.89x, the plastic
-/// crate 0.87x; blocks of 6 were 1.14-1.28x slower than 4 (the packed triangular solves take
-/// six right-hand sides as chunks of four and two, two passes over the factor), and whole 60-mode solves stay faster with 8 (the
+/// Lanczos block size of a class that expects at most [`SMALL_BLOCK_MAX_PAIRS`] pairs (the
+/// whole model's, and a larger class's, is [`EigenOptions::block_size`], 8). A block Krylov
+/// space of `j` blocks holds polynomials of degree `j` only, so a block method needs a few
+/// blocks beyond its wanted pairs whatever their number: with blocks of 4 the default bowl's
+/// three classes (25 and 15 pairs) converged in 252 vectors against 344 with blocks of 8, the
+/// tin can's six in 300 against 400. Cold class solves (best of 3, five interleaved rounds,
+/// median), blocks of 4 against 8: the default bowl 0.83x, the tin can 0.81x, the brass gong
+/// 0.79x, the aluminium plate 0.89x, the plastic crate 0.87x; blocks of 6 were 1.14-1.28x
+/// slower than 4 (the packed triangular solves take six right-hand sides as chunks of four
+/// and two, two passes over the factor), and whole 60-mode solves stay faster with 8 (the
 /// default bowl solved whole with 4: 1.23x).
-const CLASS_BLOCK_SIZE: usize = 4;
+const SMALL_BLOCK_SIZE: usize = 4;
+
+/// Pairs (rigid ones included) up to which a class iterates in blocks of
+/// [`SMALL_BLOCK_SIZE`]: between the default bowl's first class (28, faster with 4) and the
+/// whole model's 66 (faster with 8). The classes of the one-mirror presets ask for more (the
+/// ceramic cup's two, 15k DOFs each: 50 and 41) and keep blocks of 8; measured on the cup,
+/// blocks of 4 were 0.98-1.10x the time of 8 over several interleaved runs, within this
+/// machine's spread.
+const SMALL_BLOCK_MAX_PAIRS: usize = 32;
 
 /// Rigid motions a class holds at most (one mirror splits the six into three and three):
 /// the convergence checks are scheduled for a class's modes and these, not for its room.
