@@ -248,9 +248,10 @@ fn solve_class(
         rigid_expected: RIGID_EXPECTED,
         below_expected: expected + RIGID_EXPECTED,
     };
+    // The pairs its checks aim at, as `Iteration::start` reckons them from the room.
     let aim = match count {
-        ModeCount::First(k) => k + RIGID_EXPECTED,
-        ModeCount::Below(_) => expected + RIGID_EXPECTED,
+        ModeCount::First(k) => k + room.rigid_expected,
+        ModeCount::Below(_) => room.below_expected,
     };
     let block_size = if aim <= SMALL_BLOCK_MAX_PAIRS {
         options.block_size.min(SMALL_BLOCK_SIZE)
