@@ -32,8 +32,8 @@ use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::engine::coarse_grid;
 use modalforge::fem::{ElementCache, ElementKind, FemModel};
 use modalforge::material::Material;
-use modalforge::shape::spec::ShapeSpec;
-use modalforge::shape::{ops, VoxelGrid};
+use modalforge::shape::spec::{self, ShapeSpec};
+use modalforge::shape::VoxelGrid;
 use std::time::Instant;
 
 /// The plugin's default mode count.
@@ -42,14 +42,13 @@ const MODES: usize = 60;
 /// Cold solves per object; the median is reported.
 const COLD_RUNS: usize = 3;
 
-fn grid_of(spec: &str) -> VoxelGrid {
+/// The voxels of a built-in shape as the plugin and the command line make them for `kind`
+/// (centred on its blocks for hex27x2: `spec::primitive_voxels`).
+fn grid_of(spec: &str, kind: ElementKind) -> VoxelGrid {
     match spec.parse::<ShapeSpec>().expect("shape spec") {
         ShapeSpec::Primitive { shape, hollow } => {
-            let grid = shape.rasterize(1.0, 1.0).expect("rasterise");
-            match hollow {
-                Some(w) => ops::hollow(&grid, w.round().max(1.0) as usize),
-                None => grid,
-            }
+            spec::primitive_voxels(&shape, hollow, 1.0, kind.voxels_per_element())
+                .expect("rasterise")
         }
         _ => panic!("presets use built-in shapes"),
     }
@@ -262,7 +261,7 @@ fn export_for_scipy(dir: &std::path::Path) {
         ("sphere-59k", "sphere:d=32"),
     ];
     for (name, spec) in objects {
-        let grid = grid_of(spec);
+        let grid = grid_of(spec, ElementKind::Hex8Incompatible);
         let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, nu).expect("model");
         // The mass as 3x3 blocks, for the same CSC writer (`K - 0 M` is `K`).
         let mass_blocks = mass_as_blocks(&model.m);
@@ -370,7 +369,7 @@ fn main() {
         "exact~", "coarse", "err10"
     );
     for (name, spec, nu) in objects(quick) {
-        let grid = grid_of(&spec);
+        let grid = grid_of(&spec, kind);
         // The median of a few cold solves: one run varies by 10 % on a shared machine.
         let mut colds: Vec<(f64, ModeBasis)> = (0..COLD_RUNS)
             .map(|_| {
@@ -574,7 +573,7 @@ mod drag {
                 },
                 recording: None,
             };
-            let mut grid = grid_of("bowl:d=16,wall=2");
+            let mut grid = grid_of("bowl:d=16,wall=2", ElementKind::Hex27Blocks);
             control.request(request(grid.clone()));
             assert!(
                 control.wait_idle(Duration::from_secs(60)),
@@ -638,7 +637,7 @@ mod drag {
         };
         let kind = ElementKind::Hex27Blocks;
         let solve = |g: &_| ModeBasis::solve(g, kind, nu, SolverKind::Auto, &options);
-        let mut grid = grid_of("bowl:d=16,wall=2");
+        let mut grid = grid_of("bowl:d=16,wall=2", kind);
         let before = solve(&grid).expect("cold");
         let mut line =
             String::from("carried answer from the exact answer before the drag, largest error:");

@@ -8,6 +8,7 @@ use modalforge::eigen::symmetric::{self, Mirrors};
 use modalforge::eigen::{self, lanczos, ModeCount, SolverKind, Stop};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::shape::primitives::Primitive;
+use modalforge::shape::spec::primitive_voxels;
 use modalforge::shape::VoxelGrid;
 
 mod common;
@@ -38,8 +39,23 @@ fn classes_give_the_whole_model_s_lowest_modes() {
     }
     .rasterize(1.0, 1.0)
     .unwrap();
-    // The aluminium plate preset: hex27x2 elements span 2x2x2 voxels, so its one-voxel
-    // thickness has no mirror (4 classes). Its first class holds more of the lowest 60 modes
+    // The steel bar preset as the plugin rasterises it for hex27x2 (`primitive_voxels`: its
+    // 3-voxel sides padded to the 2-voxel blocks and the bar centred): three mirrors and the
+    // swap of its square section, where the plain rasterisation, one full block and one half
+    // full across each short side, has only the mirror along its length.
+    let steel_bar = primitive_voxels(
+        &Primitive::Bar {
+            length: 30.0,
+            width: 3.0,
+            height: 3.0,
+        },
+        None,
+        1.0,
+        ElementKind::Hex27Blocks.voxels_per_element(),
+    )
+    .unwrap();
+    // The aluminium plate preset rasterised plainly: hex27x2 elements span 2x2x2 voxels, so
+    // its one-voxel thickness has no mirror (4 classes). Its first class holds more of the lowest 60 modes
     // than the others, which were asked below too low a bound and are asked again: their
     // Lanczos iterations go on from where the first request stopped.
     let plate = Primitive::Plate {
@@ -68,6 +84,14 @@ fn classes_give_the_whole_model_s_lowest_modes() {
         ("sphere hex8i", sphere, hex8i, 30, 0b111, all_swaps),
         // 1.5k DOFs, just over `MIN_DOFS`: eight classes of ~190 DOFs for 60 modes.
         ("bar hex8i", small_bar, hex8i, 60, 0b111, vec![(1, 2)]),
+        (
+            "steel bar hex27x2 on blocks",
+            steel_bar,
+            ElementKind::Hex27Blocks,
+            60,
+            0b111,
+            vec![(1, 2)],
+        ),
         (
             "plate hex27x2",
             plate,

@@ -3,12 +3,19 @@
 //! project. States saved before partial voxels existed have no `fill` and load as binary.
 
 use crate::error::PluginError;
-use modalforge::shape::spec::ShapeSpec;
+use modalforge::fem::ElementKind;
+use modalforge::shape::spec::{self, ShapeSpec};
 use modalforge::shape::VoxelGrid;
 use serde::{Deserialize, Serialize};
 
 /// Largest grid side the editor allows (issue #4: resolution up to 32^3).
 pub const MAX_SIDE: usize = 32;
+
+/// Voxels along an element of the plugin's default element, hex27x2: built-in shapes are
+/// rasterised centred on its blocks ([`spec::primitive_voxels`]), so a mirror-symmetric
+/// shape gives a mirror-symmetric mesh (with the other elements, whose elements are single
+/// voxels, the padded faces are partial voxels like a curved shape's).
+pub const BLOCK_VOXELS: usize = ElementKind::Hex27Blocks.voxels_per_element();
 
 /// A voxel object: dimensions and one bit per voxel, x fastest.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -58,10 +65,7 @@ impl Sculpt {
     pub fn from_spec(spec: &str) -> Result<Self, PluginError> {
         match spec.parse::<ShapeSpec>()? {
             ShapeSpec::Primitive { shape, hollow } => {
-                let mut grid = shape.rasterize(1.0, 1.0)?;
-                if let Some(w) = hollow {
-                    grid = modalforge::shape::ops::hollow(&grid, w.round().max(1.0) as usize);
-                }
+                let grid = spec::primitive_voxels(&shape, hollow, 1.0, BLOCK_VOXELS)?;
                 Ok(Self::from_grid(&grid))
             }
             _ => Err(PluginError::FileSpec(spec.into())),

@@ -6,7 +6,7 @@ use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
 use modalforge::fem::ElementKind;
 use modalforge::material::{DampedMode, DampingLaw, Material, MaterialError};
 use modalforge::shape::mesh::{self, MeshError};
-use modalforge::shape::spec::{ShapeSpec, SpecError};
+use modalforge::shape::spec::{self, ShapeSpec, SpecError};
 use modalforge::shape::vox::{self, VoxError};
 use modalforge::shape::{ops, VoxelGrid};
 use serde::Serialize;
@@ -269,16 +269,18 @@ fn voxels_of(
                 Some(r) => r as f64 / longest,
                 None => 1.0,
             };
-            let mut grid = if staircase {
-                shape.rasterize_staircase(scale, 1.0)
+            if staircase {
+                let grid = shape
+                    .rasterize_staircase(scale, 1.0)
+                    .map_err(BasisError::from)?;
+                match hollow {
+                    Some(w) => ops::hollow(&grid, (w * scale).round().max(1.0) as usize),
+                    None => grid,
+                }
             } else {
-                shape.rasterize(scale, 1.0)
+                let block = resolution.element.voxels_per_element();
+                spec::primitive_voxels(shape, *hollow, scale, block).map_err(BasisError::from)?
             }
-            .map_err(BasisError::from)?;
-            if let Some(w) = hollow {
-                grid = ops::hollow(&grid, (w * scale).round().max(1.0) as usize);
-            }
-            grid
         }
         ShapeSpec::Vox(path) => vox::read_vox(path, 1.0)?,
         ShapeSpec::Mesh(path) => {

@@ -51,7 +51,7 @@ impl ElementKind {
     }
 
     /// Voxels along each edge of one element: 2 for [`ElementKind::Hex27Blocks`], else 1.
-    pub fn voxels_per_element(self) -> usize {
+    pub const fn voxels_per_element(self) -> usize {
         match self {
             ElementKind::Hex27Blocks => 2,
             _ => 1,

@@ -19,6 +19,7 @@
 //! Examples: `bar:64x4x4`, `sphere:d=24`, `bowl:d=32,wall=2`, `box:16x16x16,hollow=2`.
 
 use super::primitives::Primitive;
+use super::{ShapeError, VoxelGrid};
 use std::path::PathBuf;
 
 /// A parsed `--shape`.
@@ -192,6 +193,29 @@ pub const BUILT_INS: &[BuiltIn] = &[
         },
     },
 ];
+
+/// The voxels (edge 1) of a built-in primitive at `scale`, hollowed to a wall of `hollow`
+/// voxels times `scale` (at least one) where given, for elements that span `block_voxels`
+/// voxels per axis ([`Primitive::rasterize_on_blocks`]: odd sides padded and the shape
+/// centred, so its mirrors are the mesh's). A hollowed shape is rasterised as it is: the
+/// hollowing counts a half-filled face layer as a whole wall voxel.
+pub fn primitive_voxels(
+    shape: &Primitive,
+    hollow: Option<f64>,
+    scale: f64,
+    block_voxels: usize,
+) -> Result<VoxelGrid, ShapeError> {
+    match hollow {
+        Some(w) => {
+            let grid = shape.rasterize(scale, 1.0)?;
+            Ok(super::ops::hollow(
+                &grid,
+                (w * scale).round().max(1.0) as usize,
+            ))
+        }
+        None => shape.rasterize_on_blocks(scale, 1.0, block_voxels),
+    }
+}
 
 /// The built-in names, comma-separated.
 pub fn built_in_names() -> String {

@@ -7,8 +7,8 @@
 //! worker solves (the crop's longest side is what the Size parameter spans).
 
 use crate::error::PluginError;
-use crate::sculpt::{Sculpt, MAX_SIDE};
-use modalforge::shape::spec::ShapeSpec;
+use crate::sculpt::{Sculpt, BLOCK_VOXELS, MAX_SIDE};
+use modalforge::shape::spec::{self, ShapeSpec};
 use modalforge::shape::{VoxelFill, VoxelGrid};
 
 /// Undo steps kept (each is one working box: 32 KiB plus its partial voxels).
@@ -175,11 +175,7 @@ impl Sculptor {
             return Err(PluginError::FileSpec(spec.into()));
         };
         let longest = shape.extent().into_iter().fold(0.0, f64::max);
-        let mut grid = shape.rasterize(side as f64 / longest, 1.0)?;
-        if let Some(w) = hollow {
-            let w = (w * side as f64 / longest).round().max(1.0) as usize;
-            grid = modalforge::shape::ops::hollow(&grid, w);
-        }
+        let grid = spec::primitive_voxels(&shape, hollow, side as f64 / longest, BLOCK_VOXELS)?;
         if grid.count() == 0 {
             return Err(PluginError::EmptyAt {
                 spec: spec.into(),
