@@ -125,10 +125,11 @@ fn stroke(grid: &VoxelGrid, add: bool) -> VoxelGrid {
         }
     }
     let Some(([x, y, z], _)) = best else {
-        // A full box (a plate): grow the grid by a layer on top and add the voxel there.
+        // A full box (a plate, a bar): grow the grid by a layer on top and add the voxel
+        // there, every voxel below keeping its fill (a centred bar's faces are half full).
         let mut out = VoxelGrid::new([d[0], d[1], d[2] + 1], grid.voxel_size_m()).expect("grid");
         for [x, y, z] in grid.solid_voxels() {
-            out.set(x, y, z, true);
+            out.set_fill(x, y, z, grid.fill_at(x as isize, y as isize, z as isize));
         }
         out.set(d[0] * 3 / 10, d[1] * 7 / 10, d[2], true);
         return out;

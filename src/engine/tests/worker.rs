@@ -1,0 +1,359 @@
+//! The worker's solver chain. Truths: counted solver calls (an edit during a solve is
+//! coalesced to the newest, an obsolete slow answer gives way), the thread each solve runs
+//! on, and the chain's answers checked against cold solves of the same grid.
+
+use super::*;
+
+/// Counts calls and sleeps, to see coalescing.
+struct Slow {
+    calls: Arc<AtomicU64>,
+}
+
+impl ModeSolver for Slow {
+    fn name(&self) -> &'static str {
+        "slow"
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.calls.fetch_add(1, Ordering::SeqCst);
+        std::thread::sleep(Duration::from_millis(300));
+        FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn the_engine_solves_on_its_worker_thread_alone() {
+    // faer's default global parallelism is a rayon pool over every core, which its dense
+    // helpers without an explicit `Par` use: an engine makes it sequential, so a solve keeps
+    // to the worker thread (and no pool thread reserves a gemm workspace).
+    faer::set_global_parallelism(faer::Par::rayon(0));
+    let (_audio, _control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    assert!(matches!(faer::get_global_parallelism(), faer::Par::Seq));
+}
+
+#[test]
+fn edits_during_a_solve_coalesce_to_the_newest() {
+    // Five edits while the first is being solved: the worker solves the first and the last
+    // only, and the audio side ends up with the last shape.
+    let calls = Arc::new(AtomicU64::new(0));
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(Slow {
+            calls: calls.clone(),
+        })],
+    )
+    .unwrap();
+    for len in [10, 11, 12, 13, 14] {
+        control.request(request(bar(len), 10));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    assert_eq!(calls.load(Ordering::SeqCst), 2);
+    audio.process(&mut [0.0; 64], &[]);
+    assert_eq!(audio.object_extent(), Some(14));
+}
+
+/// A first answer that applies to every request or to none.
+struct Quick {
+    applies: bool,
+}
+
+impl ModeSolver for Quick {
+    fn name(&self) -> &'static str {
+        "quick"
+    }
+    fn applies(&self, _r: &ObjectRequest) -> bool {
+        self.applies
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        FemSolver.solve(r)
+    }
+}
+
+/// A slow exact answer (300 ms) that polls its stop every 2 ms, counting how it ended.
+struct Patient {
+    finished: Arc<AtomicU64>,
+    interrupted: Arc<AtomicU64>,
+}
+
+impl ModeSolver for Patient {
+    fn name(&self) -> &'static str {
+        "patient"
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, crate::eigen::Stop::NEVER)
+    }
+    fn solve_until(
+        &mut self,
+        r: &ObjectRequest,
+        stop: crate::eigen::Stop,
+    ) -> Result<ObjectModes, BasisError> {
+        let start = std::time::Instant::now();
+        while start.elapsed() < Duration::from_millis(300) {
+            if let Err(e) = stop.check() {
+                self.interrupted.fetch_add(1, Ordering::SeqCst);
+                return Err(e.into());
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        self.finished.fetch_add(1, Ordering::SeqCst);
+        FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn a_slow_answer_made_obsolete_gives_way_to_a_faster_one() {
+    // An edit arrives while the slow exact answer to the one before is being solved. Where a
+    // faster solver earlier in the chain answers the new edit, the obsolete solve is given up
+    // (the new edit is heard at once, not after it); where none does, it is finished (it is
+    // the next thing to play). Either way the newest edit ends up playing, answered last.
+    for first_applies in [true, false] {
+        let (finished, interrupted) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+        let (mut audio, control) = Engine::start(
+            FS,
+            EngineConfig::default(),
+            steel(),
+            vec![
+                Box::new(Quick {
+                    applies: first_applies,
+                }),
+                Box::new(Patient {
+                    finished: finished.clone(),
+                    interrupted: interrupted.clone(),
+                }),
+            ],
+        )
+        .unwrap();
+        control.request(request(bar(10), 10));
+        let t = std::time::Instant::now();
+        while !matches!(
+            control.status().state,
+            SolveState::Solving {
+                solver: "patient",
+                ..
+            }
+        ) {
+            assert!(
+                t.elapsed() < Duration::from_secs(60),
+                "the first solve never started"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        std::thread::sleep(Duration::from_millis(30));
+        control.request(request(bar(14), 10));
+        assert!(control.wait_idle(Duration::from_secs(60)));
+        let status = control.status();
+        let (done, given_up) = (
+            finished.load(Ordering::SeqCst),
+            interrupted.load(Ordering::SeqCst),
+        );
+        if first_applies {
+            assert_eq!((done, given_up, status.interrupted), (1, 1, 1));
+        } else {
+            assert_eq!((done, given_up, status.interrupted), (2, 0, 0));
+        }
+        let last = status.last.unwrap();
+        assert_eq!((last.solver, last.request), ("patient", 2));
+        audio.process(&mut [0.0; 64], &[]);
+        assert_eq!(audio.object_extent(), Some(14));
+    }
+}
+
+/// A hollow box, walls two voxels thick (survives halving its resolution).
+fn thick_box(side: usize) -> VoxelGrid {
+    let solid = VoxelGrid::from_fn([side, side, side], 0.01, |_, _, _| true).unwrap();
+    crate::shape::ops::hollow(&solid, 2)
+}
+
+#[test]
+fn coarse_grid_halves_thick_objects_and_refuses_thin_walls() {
+    let grid = thick_box(16);
+    let coarse = coarse_grid(&grid).expect("a 2-voxel wall survives halving");
+    assert_eq!(coarse.dims(), [8, 8, 8]);
+    assert_eq!(coarse.voxel_size_m(), 0.02);
+    // Volume kept within the stated 25 % (here exactly: the walls are aligned to 2).
+    assert_eq!(8 * coarse.count(), grid.count());
+    let thin = crate::shape::ops::hollow(
+        &VoxelGrid::from_fn([16, 16, 16], 0.01, |_, _, _| true).unwrap(),
+        1,
+    );
+    assert!(
+        coarse_grid(&thin).is_none(),
+        "a 1-voxel wall does not survive"
+    );
+    // The cost model orders objects by size.
+    let count = ModeCount::First(60);
+    assert!(predicted_cold_ms(&thick_box(24), count) > predicted_cold_ms(&grid, count));
+}
+
+#[test]
+fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
+    // The interactive chain on a stroke: the carried answer is delivered first, within its
+    // stated error of the exact one, and the exact answer (solved cold) replaces it.
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new()),
+    )
+    .unwrap();
+    let grid = thick_box(10);
+    control.request(request(grid.clone(), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let first = control.status();
+    assert_eq!(first.last.as_ref().unwrap().solver, "fem");
+    let mut edited = grid.clone();
+    edited.set(5, 5, 9, false);
+    control.request(request(edited, 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let st = control.status();
+    assert_eq!(st.solves, first.solves + 2, "carried, then exact: {st:?}");
+    assert_eq!(st.last.as_ref().unwrap().solver, "fem");
+    assert_eq!(st.playing.as_ref().unwrap().expected_error, None);
+    let exact = control.latest_object().unwrap();
+    // Both answers went to the audio side; the newest is the exact one.
+    audio.process(&mut [0.0; 16], &[]);
+    assert!(audio.has_object());
+    let carried = ModeBasis::carried_ritz(
+        &exact_grid(&exact),
+        ElementKind::Hex8Incompatible,
+        Material::preset("steel").unwrap().poisson_ratio,
+        20,
+        FemSolver.solve(&request(grid, 20)).unwrap().fem().unwrap(),
+        None,
+    )
+    .unwrap()
+    .unwrap();
+    for (c, e) in carried
+        .solution
+        .eigenvalues
+        .iter()
+        .zip(exact.basis.eigenvalues())
+    {
+        let err = (c.sqrt() - e.sqrt()).abs() / e.sqrt();
+        assert!(err < CARRIED_EXPECTED_ERROR, "{err:.1e}");
+    }
+}
+
+/// The grid a basis was solved for, rebuilt from its voxels.
+fn exact_grid(latest: &crate::engine::LatestObject) -> VoxelGrid {
+    let dims = latest.basis.grid_dims();
+    let mut g = VoxelGrid::new(dims, 0.01).unwrap();
+    for v in &latest.basis.fem().unwrap().model.voxels {
+        g.set(v[0], v[1], v[2], true);
+    }
+    g
+}
+
+#[test]
+fn the_predictor_answers_first_and_the_answers_switch_selects() {
+    // Auto: a new object gets the neural answer, then the exact one; FEM only: no neural
+    // answer; Predictor only: no FEM solve, and the predicted modes reach the audio side and
+    // play finite audio. Any weights exercise the chain (a randomly initialised network).
+    use crate::predictor::network::{ModeNet, Widths};
+    use crate::predictor::Predictor;
+    let predictor = Predictor::from_model(
+        ModeNet::new(Widths::SHIPPED, &burn::tensor::Device::flex()),
+        None,
+    );
+    let answers = AnswerSwitch::default();
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        interactive_solvers(
+            Some(std::sync::Arc::new(predictor)),
+            answers.clone(),
+            &KeptAnswers::new(),
+        ),
+    )
+    .unwrap();
+    control.request(request(thick_box(8), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let st = control.status();
+    assert_eq!(st.solves, 2, "neural, then exact: {st:?}");
+    assert_eq!(st.last.as_ref().unwrap().solver, "fem");
+    answers.set(Answers::FemOnly);
+    control.request(request(bar(20), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let fem_only = control.status();
+    assert_eq!(fem_only.solves, st.solves + 1, "{fem_only:?}");
+    answers.set(Answers::PredictorOnly);
+    control.request(request(thick_box(10), 20));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let neural = control.status();
+    assert_eq!(neural.solves, fem_only.solves + 1, "{neural:?}");
+    assert_eq!(neural.last.as_ref().unwrap().solver, "neural");
+    assert_eq!(
+        neural.playing.as_ref().unwrap().expected_error,
+        Some(NEURAL_EXPECTED_ERROR)
+    );
+    let latest = control.latest_object().unwrap();
+    assert!(latest.basis.fem().is_none());
+    let out = render(&mut audio, 4800, &[strike(60, 1.0)]);
+    assert!(out.iter().all(|s| s.is_finite()));
+}
+
+/// A status watcher hears every change a window shows: the solve starting, the answer
+/// delivered, the worker idle again (three calls for one solve), each seen with the status
+/// already changed; a replaced watcher is no longer called.
+#[test]
+fn a_status_watcher_hears_each_change_of_a_solve() {
+    use std::sync::atomic::AtomicUsize;
+    let (_audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    let control = Arc::new(control);
+    let calls = Arc::new(AtomicUsize::new(0));
+    let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
+    {
+        let (calls, seen) = (calls.clone(), seen.clone());
+        let weak = Arc::downgrade(&control);
+        control.watch_status(Arc::new(move || {
+            calls.fetch_add(1, Ordering::SeqCst);
+            if let Some(c) = weak.upgrade() {
+                let st = c.status();
+                let solving = matches!(st.state, SolveState::Solving { .. });
+                seen.lock().unwrap().push((solving, st.solves));
+            }
+        }));
+    }
+    // The last call comes just after the worker turns idle, so wait_idle may return first.
+    let settle = |calls: &AtomicUsize, want: usize| {
+        let t0 = std::time::Instant::now();
+        while calls.load(Ordering::SeqCst) < want && t0.elapsed() < Duration::from_secs(5) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    control.request(request(bar(12), 10));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    settle(&calls, 3);
+    assert_eq!(calls.load(Ordering::SeqCst), 3);
+    assert_eq!(
+        *seen.lock().unwrap(),
+        vec![(true, 0), (true, 1), (false, 1)]
+    );
+    let later = Arc::new(AtomicUsize::new(0));
+    let l = later.clone();
+    control.watch_status(Arc::new(move || {
+        l.fetch_add(1, Ordering::SeqCst);
+    }));
+    control.request(request(bar(14), 10));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    settle(&later, 3);
+    assert_eq!(
+        (calls.load(Ordering::SeqCst), later.load(Ordering::SeqCst)),
+        (3, 3)
+    );
+}
