@@ -273,10 +273,7 @@ fn voxels_of(
                 let grid = shape
                     .rasterize_staircase(scale, 1.0)
                     .map_err(BasisError::from)?;
-                match hollow {
-                    Some(w) => ops::hollow(&grid, (w * scale).round().max(1.0) as usize),
-                    None => grid,
-                }
+                spec::hollowed(grid, *hollow, scale)
             } else {
                 let block = resolution.element.voxels_per_element();
                 spec::primitive_voxels(shape, *hollow, scale, block).map_err(BasisError::from)?

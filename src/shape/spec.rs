@@ -206,14 +206,17 @@ pub fn primitive_voxels(
     block_voxels: usize,
 ) -> Result<VoxelGrid, ShapeError> {
     match hollow {
-        Some(w) => {
-            let grid = shape.rasterize(scale, 1.0)?;
-            Ok(super::ops::hollow(
-                &grid,
-                (w * scale).round().max(1.0) as usize,
-            ))
-        }
+        Some(_) => Ok(hollowed(shape.rasterize(scale, 1.0)?, hollow, scale)),
         None => shape.rasterize_on_blocks(scale, 1.0, block_voxels),
+    }
+}
+
+/// `grid` hollowed to a wall of `hollow` voxels times `scale` (at least one) where given: a
+/// spec's `hollow=N` at the scale it was rasterised at.
+pub fn hollowed(grid: VoxelGrid, hollow: Option<f64>, scale: f64) -> VoxelGrid {
+    match hollow {
+        Some(w) => super::ops::hollow(&grid, (w * scale).round().max(1.0) as usize),
+        None => grid,
     }
 }
 
