@@ -459,3 +459,24 @@ fn the_output_never_holds_subnormal_samples() {
     let loud = render(&mut audio, 4800, &[strike(2, 1.0)]);
     assert!(loud.iter().any(|x| x.abs() > 1e-6));
 }
+
+/// An engine playing `records` as a recording (no solve: any number of modes, exact values).
+fn recorded(records: &[crate::modes::ModeRecord]) -> (AudioEngine, EngineControl) {
+    let voicing = steel();
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        voicing,
+        vec![Box::new(FemSolver)],
+    )
+    .unwrap();
+    let recording = recorded::RecordedObject::new("test.wav", records, &voicing).unwrap();
+    control.request(ObjectRequest {
+        recording: Some(std::sync::Arc::new(recording)),
+        ..request(bar(8), 10)
+    });
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    audio.process(&mut [0.0; 16], &[]);
+    assert!(audio.has_object());
+    (audio, control)
+}

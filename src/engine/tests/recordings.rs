@@ -31,21 +31,8 @@ fn a_recording_plays_as_recorded_and_follows_the_pitch_mapping() {
     // agree to f32 rendering precision (1e-4 of the peak, as for solved shapes). Then a
     // pitch-mapped strike on C4: the cluster centre of the lowest pair on 261.63 Hz
     // (`pitch::cluster_pitch_hz` on the recorded weights), every mode scaled by the same ratio.
-    let voicing = steel();
-    let (mut audio, control) = Engine::start(
-        FS,
-        EngineConfig::default(),
-        voicing,
-        vec![Box::new(FemSolver)],
-    )
-    .unwrap();
     let bell = recorded_bell();
-    let recording = recorded::RecordedObject::new("bell.wav", &bell, &voicing).unwrap();
-    control.request(ObjectRequest {
-        recording: Some(std::sync::Arc::new(recording)),
-        ..request(bar(8), 10)
-    });
-    assert!(control.wait_idle(Duration::from_secs(60)));
+    let (mut audio, control) = recorded(&bell);
     assert_eq!(
         control.status().playing.map(|p| p.solver),
         Some("recording")

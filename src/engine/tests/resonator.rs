@@ -16,27 +16,6 @@ fn on() -> ResonatorSettings {
     }
 }
 
-/// An engine playing `records` as a recording (no solve: any number of modes, exact values).
-fn recorded(records: &[crate::modes::ModeRecord]) -> (AudioEngine, EngineControl) {
-    let voicing = steel();
-    let (mut audio, control) = Engine::start(
-        FS,
-        EngineConfig::default(),
-        voicing,
-        vec![Box::new(FemSolver)],
-    )
-    .unwrap();
-    let recording = recorded::RecordedObject::new("test.wav", records, &voicing).unwrap();
-    control.request(ObjectRequest {
-        recording: Some(std::sync::Arc::new(recording)),
-        ..request(bar(8), 10)
-    });
-    assert!(control.wait_idle(Duration::from_secs(60)));
-    audio.process(&mut [0.0; 16], &[]);
-    assert!(audio.has_object());
-    (audio, control)
-}
-
 /// Runs the effect on `input` in 64-sample blocks (no strikes), returning the output.
 fn resonate(audio: &mut AudioEngine, input: &[f32], settings: &ResonatorSettings) -> Vec<f32> {
     let mut out = vec![0f32; input.len()];
