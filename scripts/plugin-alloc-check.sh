@@ -8,9 +8,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/need.sh
-nice_plug_need
 export CARGO_PROFILE_DEV_OPT_LEVEL=2
-cargo nice-plug bundle modalforge-plugin --features assert_process_allocs
+bash scripts/bundle.sh --debug --features assert_process_allocs
 rm -rf target/bundled-alloc-check
 mkdir -p target/bundled-alloc-check
 cp -r target/bundled/ModalForge.vst3 target/bundled-alloc-check/

@@ -2,7 +2,7 @@
 # Builds the VST3/CLAP bundles and runs the plugin in real third-party hosts: pedalboard,
 # checking its spectrum against `modalforge modes` and torturing it (plugin/tests/host_test.py),
 # and DawDreamer, automating every parameter every block (plugin/tests/dawdreamer_torture.py).
-# Installs what it needs: cargo-nice-plug (crates.io) and a Python venv with both hosts.
+# Installs what it needs: a Python venv with both hosts (and, off Linux, cargo-nice-plug).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/bundle.sh
