@@ -14,6 +14,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/need.sh
+# The profile's folder and its cargo option; `${build[@]+"${build[@]}"}` below expands an
+# empty array under `set -u` in macOS's bash 3.2 too.
 profile=release
 build=(--release)
 if [ "${1:-}" = --debug ]; then
@@ -32,11 +34,11 @@ if [ "$(uname -s)" = Linux ]; then
 fi
 if [ -z "$arch" ]; then
   nice_plug_need
-  cargo nice-plug bundle modalforge-plugin "${build[@]}" "$@"
+  cargo nice-plug bundle modalforge-plugin ${build[@]+"${build[@]}"} "$@"
   ls -d target/bundled/*
   exit 0
 fi
-cargo build --locked -p modalforge-plugin --lib "${build[@]}" "$@"
+cargo build --locked -p modalforge-plugin --lib ${build[@]+"${build[@]}"} "$@"
 lib="${CARGO_TARGET_DIR:-target}/$profile/libmodalforge_plugin.so"
 command -v nm >/dev/null || apt_need binutils
 exports=$(nm -D --defined-only "$lib")
