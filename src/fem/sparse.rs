@@ -181,13 +181,16 @@ pub fn permuted_shifted_csc(
     // 9 entries a block off the diagonal and 6 a diagonal block in either triangle (the
     // pattern is symmetric); from the process's kept buffers (`crate::buffer`), to go back
     // there once the factorisation has read them.
-    let entries = (0..n)
+    // (Halved over the whole pattern, not row by row: a row may hold an odd number of
+    // off-diagonal blocks.)
+    let (off_diagonal, diagonal) = (0..n)
         .map(|a| {
             let row = &pattern.col[pattern.row_ptr[a]..pattern.row_ptr[a + 1]];
-            let diagonal = row.binary_search(&(a as u32)).is_ok();
-            9 * (row.len() - usize::from(diagonal)) / 2 + 6 * usize::from(diagonal)
+            let diagonal = usize::from(row.binary_search(&(a as u32)).is_ok());
+            (row.len() - diagonal, diagonal)
         })
-        .sum::<usize>();
+        .fold((0, 0), |(o, d), (ro, rd)| (o + ro, d + rd));
+    let entries = 9 * off_diagonal / 2 + 6 * diagonal;
     let mut col_ptr = Vec::with_capacity(3 * n + 1);
     let mut row_idx = crate::buffer::take(entries);
     let mut val = crate::buffer::take(entries);
