@@ -250,6 +250,10 @@ pub struct Operators<'a> {
     /// The mass as diagonal blocks instead, where it is not `m_ab I3`: a symmetry class's
     /// reduced mass ([`symmetric`]) differs by component.
     pub mass_diagonal: Option<&'a [[f64; 3]]>,
+    /// With `mass_diagonal`, the mass's entries off its blocks' diagonals as `(row DOF,
+    /// column DOF, value)`: a few, in a symmetry class split by an axis swap
+    /// ([`symmetric`]); empty elsewhere.
+    pub mass_extra: &'a [(u32, u32, f64)],
     /// DOFs that do not exist in this problem (a symmetry class's DOFs that its symmetry
     /// forces to zero; empty for a whole model): decoupled in `K`, massless, and kept at zero in
     /// every start vector.
@@ -275,6 +279,7 @@ impl<'a> Operators<'a> {
             k,
             m,
             mass_diagonal: None,
+            mass_extra: &[],
             absent: &[],
             k_norm: sparse::norm_inf(p, k),
             m_norm: sparse::mass_norm_inf(p, m),
@@ -355,7 +360,15 @@ impl<'a> Operators<'a> {
         match which {
             Which::K => sparse::spmm(self.pattern, self.k, x, y, layout),
             Which::M => match self.mass_diagonal {
-                Some(m) => sparse::spmm_mass_diagonal(self.pattern, m, x, y, layout),
+                Some(m) => {
+                    sparse::spmm_mass_diagonal(self.pattern, m, x, y, layout);
+                    for &(i, j, v) in self.mass_extra {
+                        let (i, j) = (i as usize * layout.stride, j as usize * layout.stride);
+                        for c in 0..layout.width {
+                            y[i + c] += v * x[j + c];
+                        }
+                    }
+                }
                 None => sparse::spmm_mass(self.pattern, self.m, x, y, layout),
             },
         }

@@ -32,6 +32,12 @@ fn classes_give_the_whole_model_s_lowest_modes() {
     let sphere = Primitive::Sphere { diameter: 12.0 }
         .rasterize(1.0, 1.0)
         .unwrap();
+    // Large enough that its classes are split by the swaps that map them onto themselves
+    // (`symmetric::MIN_SPLIT_CLASS_DOFS`): three swaps, and classes split by different ones
+    // (the class even in all three mirrors by the x-y swap, the one odd in x only by y-z).
+    let large_sphere = Primitive::Sphere { diameter: 18.0 }
+        .rasterize(1.0, 1.0)
+        .unwrap();
     let small_bar = Primitive::Bar {
         length: 30.0,
         width: 3.0,
@@ -81,7 +87,15 @@ fn classes_give_the_whole_model_s_lowest_modes() {
             0b011,
             bowl_swap,
         ),
-        ("sphere hex8i", sphere, hex8i, 30, 0b111, all_swaps),
+        ("sphere hex8i", sphere, hex8i, 30, 0b111, all_swaps.clone()),
+        (
+            "sphere d=18 hex8i",
+            large_sphere,
+            hex8i,
+            40,
+            0b111,
+            all_swaps,
+        ),
         // 1.5k DOFs, just over `MIN_DOFS`: eight classes of ~190 DOFs for 60 modes.
         ("bar hex8i", small_bar, hex8i, 60, 0b111, vec![(1, 2)]),
         (
@@ -110,6 +124,14 @@ fn classes_give_the_whole_model_s_lowest_modes() {
         let mirrors = Mirrors::detect(&model).expect("mirrors");
         assert_eq!(mirrors.axes(), axes, "{name}: mirrors");
         assert_eq!(mirrors.swaps(), swaps, "{name}: swaps");
+        if name == "bowl hex27x2" || name == "sphere d=18 hex8i" {
+            let classes = mirrors.classes();
+            assert!(
+                model.dofs() / classes.len() >= symmetric::MIN_SPLIT_CLASS_DOFS
+                    && classes.iter().any(|&c| mirrors.splitting_swap(c).is_some()),
+                "{name}: classes split by a swap"
+            );
+        }
         let opts = options(ModeCount::First(modes));
         let classes = symmetric::solve_until(&model, &opts, Stop::NEVER)
             .expect("solved by classes")

@@ -24,7 +24,9 @@
 //!
 //! A swap of two mirrored axes that is a symmetry too maps the classes odd in one of them onto
 //! those odd in the other: their modes are images, not solved (the bowl solves three classes
-//! of four, a sphere four of eight).
+//! of four, a sphere four of eight). A class it maps onto itself (even in both mirrors, or odd
+//! in both) it splits in two, each solved on its own ([`split`]): the bowl's three problems of
+//! a quarter of the model become one quarter and four eighths.
 //!
 //! Which classes hold the lowest `k` modes is not known in advance (a bowl's paired modes fill
 //! the classes odd in one mirror, its others spread over every class). The first class asks for
@@ -37,10 +39,12 @@
 //! and `||B r|| = ||r||`).
 
 mod mirrors;
+mod split;
 
 pub use mirrors::{ClassProblem, Mirrors, SYMMETRY_TOLERANCE};
 
 use mirrors::Lifting;
+use split::Split;
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{FirstRoom, Iteration, SHIFT_RELATIVE};
@@ -67,6 +71,8 @@ pub const MAX_DOFS: usize = 200_000;
 /// A class solved: its pairs and vectors, still on the representatives.
 struct ClassAnswer {
     chi: u8,
+    /// The half of the class it is, where a swap splits it.
+    split: Option<Split>,
     /// The swaps mapping it onto each class that is an image of it.
     images: Vec<Vec<usize>>,
     /// What it was asked for.
@@ -102,45 +108,79 @@ fn solve_classes(
 ) -> Result<EigenSolution, EigenError> {
     let whole = Operators::new(model);
     let shift = -SHIFT_RELATIVE * whole.scale;
-    // Each group of classes that swaps map onto one another is solved once, for its first.
-    let groups = mirrors.groups();
-    // The first class makes room for 1.5 times its share of the request; the others ask for
-    // the modes below what that share reached in it (classes have about equal densities of
-    // modes), or below the k-th lowest found so far once that is known.
     let class_count = mirrors.classes().len();
-    let (first, share) = match options.count {
-        ModeCount::First(k) => (
-            ModeCount::First((3 * k).div_ceil(2 * class_count).min(k) + 2),
-            k.div_ceil(class_count),
-        ),
-        below => (below, BELOW_SHARE.div_ceil(class_count)),
-    };
     let p = model.kind.order() as i64;
-    let coords: Vec<[i64; 3]> = mirrors
-        .reps
-        .iter()
+    let coords: Vec<[i64; 3]> = (mirrors.reps.iter())
         .map(|&n| model.node_lattice_coords(n))
         .collect();
-    let nodes = ordering::nested_dissection_of(&coords, p);
-    let (mut iterate_ms, mut iterations) = (0.0, 0);
-    let mut solved: Vec<ClassAnswer> = Vec::with_capacity(groups.len());
-    let mut problems = Vec::with_capacity(groups.len());
-    let mut estimate = None;
-    for group in &groups {
+    // The problems to solve: the first class of each group of classes that swaps map onto
+    // one another (the others are images of it), or both halves of it where a swap maps it
+    // onto itself and it is large enough ([`split`]).
+    let mut parts = Vec::new();
+    for group in mirrors.groups() {
         let chi = group[0].0;
-        let class = mirrors.reduce(model, chi);
-        let shifted: Vec<[f64; 9]> = class
-            .k
-            .iter()
-            .zip(&class.m)
-            .map(|(k, m)| {
-                std::array::from_fn(|e| match e {
-                    0 | 4 | 8 => k[e] - shift * m[e / 4],
-                    _ => k[e],
-                })
-            })
-            .collect();
-        let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, &nodes)?;
+        let images: Vec<Vec<usize>> = group[1..].iter().map(|(_, path)| path.clone()).collect();
+        let swap = (mirrors.splitting_swap(chi))
+            .filter(|_| model.dofs() / class_count >= MIN_SPLIT_CLASS_DOFS);
+        match swap {
+            Some(swap) => {
+                for tau in [1.0, -1.0] {
+                    let split = Split::new(mirrors, chi, swap, tau, &coords);
+                    parts.push((chi, Some((swap, split)), images.clone()));
+                }
+            }
+            None => parts.push((chi, None, images)),
+        }
+    }
+    // A part's share of a request: a class holds about `1 / class_count` of the modes, a
+    // half of one about half that (mode densities go with dimensions).
+    let share_of = |halved: bool, of: usize| of.div_ceil(class_count * (1 + usize::from(halved)));
+    let first_halved = parts.first().is_some_and(|p| p.1.is_some());
+    // The first part makes room for 1.5 times its share of the request; the others ask for
+    // the modes below what that share reached in it (parts have about equal densities of
+    // modes per DOF), or below the k-th lowest found so far once that is known.
+    let first = match options.count {
+        ModeCount::First(k) => {
+            ModeCount::First((share_of(first_halved, 3 * k).div_ceil(2)).min(k) + 2)
+        }
+        below => below,
+    };
+    let share = |halved: bool| match options.count {
+        ModeCount::First(k) => share_of(halved, k),
+        ModeCount::Below(_) => share_of(halved, BELOW_SHARE),
+    };
+    // Elimination orders: the classes' on the orbit representatives, a half's on its own
+    // (one per swap that splits).
+    let order_of = |orbits: &mut dyn Iterator<Item = usize>| {
+        let at: Vec<[i64; 3]> = orbits.map(|o| coords[o]).collect();
+        ordering::nested_dissection_of(&at, p)
+    };
+    let mut orders: Vec<Option<Vec<usize>>> = vec![None; 1 + mirrors.swaps().len()];
+    let (mut iterate_ms, mut iterations) = (0.0, 0);
+    let mut solved: Vec<ClassAnswer> = Vec::with_capacity(parts.len());
+    let mut problems = Vec::with_capacity(parts.len());
+    let mut estimate = None;
+    // The class a split part was reduced from, kept for its other half.
+    let mut class_of_halves: Option<ClassProblem> = None;
+    for (chi, split, images) in parts {
+        let halved = split.is_some();
+        let (class, nodes) = match &split {
+            None => {
+                let nodes = orders[0].get_or_insert_with(|| order_of(&mut (0..coords.len())));
+                (mirrors.reduce(model, chi), &*nodes)
+            }
+            Some((swap, half)) => {
+                if class_of_halves.as_ref().is_none_or(|c| c.chi != chi) {
+                    class_of_halves = Some(mirrors.reduce(model, chi));
+                }
+                let class = class_of_halves.as_ref().expect("reduced above");
+                let nodes = orders[1 + swap]
+                    .get_or_insert_with(|| order_of(&mut half.reps().iter().map(|&o| o as usize)));
+                (half.reduce(class), &*nodes)
+            }
+        };
+        let shifted = class.shifted(shift);
+        let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, nodes)?;
         drop(shifted);
         stop.check()?;
         let count = match (kth_lowest(&solved, options.count), estimate) {
@@ -149,22 +189,23 @@ fn solve_classes(
             (None, None) => first,
         };
         let ops = class.operators(&whole);
-        // A class asked below the estimate is expected to hold about 1.25 times its share.
-        let expected = (5 * share).div_ceil(4);
+        // A part asked below the estimate is expected to hold about 1.25 times its share.
+        let expected = (5 * share(halved)).div_ceil(4);
         let (solution, iteration) =
             solve_class(&ops, &mut llt, shift, options, count, expected, stop)?;
         if estimate.is_none() && matches!(options.count, ModeCount::First(_)) {
-            // Where this class holds 1.25 times its share.
+            // Where this part holds 1.25 times its share.
             let e = &solution.eigenvalues;
             estimate = e
-                .get((5 * share / 4).min(e.len().saturating_sub(1)))
+                .get((5 * share(halved) / 4).min(e.len().saturating_sub(1)))
                 .copied();
         }
         iterate_ms += solution.timings.iterate_ms;
         iterations += solution.iterations;
         solved.push(ClassAnswer {
             chi,
-            images: group[1..].iter().map(|(_, path)| path.clone()).collect(),
+            split: split.map(|(_, half)| half),
+            images,
             asked: count,
             solution,
         });
@@ -292,6 +333,11 @@ fn kth_lowest(solved: &[ClassAnswer], count: ModeCount) -> Option<f64> {
     (all.len() >= k).then(|| *all.select_nth_unstable_by(k - 1, f64::total_cmp).1)
 }
 
+/// Classes of at least this many DOFs are split in two by a swap that maps them onto
+/// themselves ([`split`]). Measured (best of 3 cold solves, 60 modes, hex27x2, interleaved
+/// rounds): see ARCHITECTURE.md, "Classes a swap maps onto themselves are split".
+pub const MIN_SPLIT_CLASS_DOFS: usize = 1000;
+
 /// Rounds of asking classes again before giving up on the class-by-class solve.
 const MAX_ROUNDS: usize = 8;
 
@@ -383,7 +429,13 @@ fn combine(
 ) -> EigenSolution {
     let liftings: Vec<Lifting> = solved
         .iter()
-        .map(|s| Lifting::new(mirrors, s.chi))
+        .map(|s| {
+            let lifting = Lifting::new(mirrors, s.chi);
+            match &s.split {
+                Some(half) => half.compose(lifting),
+                None => lifting,
+            }
+        })
         .collect();
     let mut sources = Vec::new();
     for (s, lifting) in solved.iter().zip(&liftings) {

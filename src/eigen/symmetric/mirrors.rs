@@ -149,6 +149,22 @@ impl Mirrors {
         self.swaps.iter().map(|s| s.axes).collect()
     }
 
+    /// The first swap that maps class `chi` onto itself (the class is even in both of its
+    /// axes' mirrors or odd in both), which splits it in two ([`super::split`]).
+    pub fn splitting_swap(&self, chi: u8) -> Option<usize> {
+        self.swaps.iter().position(|s| s.class(chi) == chi)
+    }
+
+    /// The two axes of swap number `swap`.
+    pub(super) fn swap_axes(&self, swap: usize) -> (usize, usize) {
+        self.swaps[swap].axes
+    }
+
+    /// Node `node`'s image under swap number `swap`.
+    pub(super) fn swap_image(&self, swap: usize, node: usize) -> usize {
+        self.swaps[swap].map[node] as usize
+    }
+
     /// The symmetry classes: one character per subset of the mirrors (bit `a` set: odd in
     /// the mirror along axis `a`).
     pub fn classes(&self) -> Vec<u8> {
@@ -201,14 +217,14 @@ impl Mirrors {
 
     /// Whether the DOF `c` of orbit `o` exists in class `chi`: every mirror that fixes the
     /// representative must map its basis vector to itself times `chi`.
-    fn present(&self, o: usize, c: usize, chi: u8) -> bool {
+    pub(super) fn present(&self, o: usize, c: usize, chi: u8) -> bool {
         (0..3)
             .filter(|a| self.fixed[o] & (1 << a) != 0)
             .all(|a| (chi & (1 << a) != 0) == (c == a))
     }
 
     /// `sigma_q(c)`: the sign of node `q`'s component `c` in its orbit's class-`chi` vector.
-    fn sign(&self, q: usize, c: usize, chi: u8) -> f64 {
+    pub(super) fn sign(&self, q: usize, c: usize, chi: u8) -> f64 {
         let g = self.from_rep[q];
         let flips = (g & chi).count_ones() + u32::from(g & (1 << c) != 0);
         if flips.is_multiple_of(2) {
@@ -224,31 +240,18 @@ impl Mirrors {
         let mut row_ptr = Vec::with_capacity(orbits + 1);
         row_ptr.push(0);
         let (mut col, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
-        let mut slot = vec![u32::MAX; orbits];
-        let mut cols = Vec::new();
+        let mut row = ReducedRow::new(orbits);
         let p = &model.pattern;
         for (o, &rep) in self.reps.iter().enumerate() {
             let present: [bool; 3] = std::array::from_fn(|c| self.present(o, c, chi));
-            cols.clear();
-            for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
-                let q = self.orbit_of[p.col[blk] as usize];
-                if slot[q as usize] == u32::MAX {
-                    slot[q as usize] = 0;
-                    cols.push(q);
-                }
-            }
-            cols.sort_unstable();
-            let start = col.len();
-            for (i, &q) in cols.iter().enumerate() {
-                slot[q as usize] = (start + i) as u32;
-            }
-            col.extend_from_slice(&cols);
+            let columns = p.col[p.row_ptr[rep]..p.row_ptr[rep + 1]].iter();
+            row.open(columns.map(|&q| self.orbit_of[q as usize]), &mut col);
             k.resize(col.len(), [0.0; 9]);
             m.resize(col.len(), [0.0; 3]);
             for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
                 let q = p.col[blk] as usize;
                 let orbit = self.orbit_of[q] as usize;
-                let at = slot[orbit] as usize;
+                let at = row.at(orbit);
                 let w = (f64::from(self.size[o]) / f64::from(self.size[orbit])).sqrt();
                 for d in 0..3 {
                     if !self.present(orbit, d, chi) {
@@ -265,14 +268,12 @@ impl Mirrors {
             }
             // An absent DOF: a decoupled row with the whole model's stiffness and no mass (an
             // infinite eigenvalue, which shift-invert never approaches).
-            let diag = slot[o] as usize;
+            let diag = row.at(o);
             let own = p.find(rep, rep as u32).expect("diagonal block");
             for c in (0..3).filter(|&c| !present[c]) {
                 k[diag][4 * c] = model.k[own][4 * c];
             }
-            for &q in &cols {
-                slot[q as usize] = u32::MAX;
-            }
+            row.close();
             row_ptr.push(col.len());
         }
         let absent = (0..orbits)
@@ -285,6 +286,7 @@ impl Mirrors {
             pattern: BlockPattern { row_ptr, col },
             k,
             m,
+            mass_extra: Vec::new(),
             absent,
         }
     }
@@ -313,6 +315,22 @@ impl Lifting {
                     }
                     let w = mirrors.sign(q, c, chi) / f64::from(mirrors.size[o]).sqrt();
                     (3 * o + c, w)
+                })
+                .collect(),
+        )
+    }
+
+    /// This lifting followed by `map`, which takes each class DOF to the DOF and coefficient
+    /// of a smaller problem's basis ([`super::split::Split`]).
+    pub(super) fn then(self, map: impl Fn(usize) -> (usize, f64)) -> Self {
+        Lifting(
+            (self.0.into_iter())
+                .map(|(i, w)| {
+                    if w == 0.0 {
+                        return (0, 0.0);
+                    }
+                    let (j, v) = map(i);
+                    (j, w * v)
                 })
                 .collect(),
         )
@@ -374,8 +392,12 @@ pub struct ClassProblem {
     pub pattern: BlockPattern,
     /// Stiffness blocks.
     pub k: Vec<[f64; 9]>,
-    /// Mass blocks' diagonals (`M` couples equal components only).
+    /// Mass blocks' diagonals.
     pub m: Vec<[f64; 3]>,
+    /// The mass's entries off the blocks' diagonals, as `(row DOF, column DOF, value)`, both
+    /// triangles: none in a mirror class (its `M` couples equal components only), a few in
+    /// a half of one split by a swap ([`super::split`]).
+    pub mass_extra: Vec<(u32, u32, f64)>,
     /// The DOFs the class does not have.
     pub absent: Vec<usize>,
 }
@@ -389,10 +411,81 @@ impl ClassProblem {
             k: &self.k,
             m: &[],
             mass_diagonal: Some(&self.m),
+            mass_extra: &self.mass_extra,
             absent: &self.absent,
             k_norm: whole.k_norm,
             m_norm: whole.m_norm,
             scale: whole.scale,
+        }
+    }
+
+    /// `K - shift M` in `K`'s blocks: what the class's factor factors.
+    pub(super) fn shifted(&self, shift: f64) -> Vec<[f64; 9]> {
+        let mut shifted: Vec<[f64; 9]> = (self.k.iter().zip(&self.m))
+            .map(|(k, m)| {
+                std::array::from_fn(|e| match e {
+                    0 | 4 | 8 => k[e] - shift * m[e / 4],
+                    _ => k[e],
+                })
+            })
+            .collect();
+        for &(i, j, v) in &self.mass_extra {
+            let (r, c) = (i as usize / 3, j as usize / 3);
+            let blk = self
+                .pattern
+                .find(r, c as u32)
+                .expect("K's pattern holds M's");
+            shifted[blk][3 * (i as usize % 3) + j as usize % 3] -= shift * v;
+        }
+        shifted
+    }
+}
+
+/// Where each column of the reduced row being built sits, for a reduction that sums the
+/// blocks of several original columns into one (orbits of nodes, pairs of orbits).
+pub(super) struct ReducedRow {
+    /// Block index of each reduced column in the open row; `u32::MAX` elsewhere.
+    slot: Vec<u32>,
+    /// The open row's reduced columns, sorted.
+    cols: Vec<u32>,
+}
+
+impl ReducedRow {
+    /// For reductions onto `columns` reduced columns.
+    pub(super) fn new(columns: usize) -> Self {
+        ReducedRow {
+            slot: vec![u32::MAX; columns],
+            cols: Vec::new(),
+        }
+    }
+
+    /// Opens the next row, whose blocks fall in the reduced columns `targets` (repeats
+    /// allowed): appends them, distinct and sorted, to the pattern's `col`.
+    pub(super) fn open(&mut self, targets: impl Iterator<Item = u32>, col: &mut Vec<u32>) {
+        self.cols.clear();
+        for t in targets {
+            if self.slot[t as usize] == u32::MAX {
+                self.slot[t as usize] = 0;
+                self.cols.push(t);
+            }
+        }
+        self.cols.sort_unstable();
+        let start = col.len();
+        for (i, &t) in self.cols.iter().enumerate() {
+            self.slot[t as usize] = (start + i) as u32;
+        }
+        col.extend_from_slice(&self.cols);
+    }
+
+    /// The block index of reduced column `t` in the open row.
+    pub(super) fn at(&self, t: usize) -> usize {
+        self.slot[t] as usize
+    }
+
+    /// Closes the open row.
+    pub(super) fn close(&mut self) {
+        for &t in &self.cols {
+            self.slot[t as usize] = u32::MAX;
         }
     }
 }
