@@ -141,38 +141,38 @@ impl Split {
         let mut row = ReducedRow::new(nodes);
         for (r, &rep) in self.reps.iter().enumerate() {
             let rep = rep as usize;
-            let pair = [rep, self.image[rep] as usize];
-            let rows = if pair[1] == rep {
-                &pair[..1]
-            } else {
-                &pair[..]
-            };
-            let columns = rows
-                .iter()
-                .flat_map(|&o| &p.col[p.row_ptr[o]..p.row_ptr[o + 1]]);
+            // By the swap's invariance, the representative's row alone gives the half's
+            // row: a pair's basis vector `(e_i + tau eps e_j) / sqrt 2` has `e_j^T A v =
+            // tau eps e_i^T A v` for any `v` of the half, so `u^T A v = sqrt 2 e_i^T A v`
+            // (as the classes are made from the orbit representatives' rows).
+            let blocks = p.row_ptr[rep]..p.row_ptr[rep + 1];
+            let columns = p.col[blocks.clone()].iter();
             row.open(columns.map(|&q| self.node_of[q as usize]), &mut col);
             k.resize(col.len(), [0.0; 9]);
             m.resize(col.len(), [0.0; 9]);
-            for &o in rows {
-                for blk in p.row_ptr[o]..p.row_ptr[o + 1] {
-                    let q = p.col[blk] as usize;
-                    let at = row.at(self.node_of[q] as usize);
-                    for c in 0..3 {
-                        let (u, cu) = self.member[3 * o + c];
-                        if cu == 0.0 {
+            for blk in blocks {
+                let q = p.col[blk] as usize;
+                let at = row.at(self.node_of[q] as usize);
+                let columns: [(u32, f64); 3] = std::array::from_fn(|d| self.member[3 * q + d]);
+                for c in 0..3 {
+                    let (u, cu) = self.member[3 * rep + c];
+                    // Not in this half, or the second member of an orbit's own pair (the
+                    // swapped component of an orbit the swap fixes), which the first stands
+                    // for.
+                    let su = u as usize % 3;
+                    if cu == 0.0 || su != c {
+                        continue;
+                    }
+                    // sqrt 2 for a pair's first member (1 / sqrt 2), 1 for a DOF alone.
+                    let weight = if cu == 1.0 { 1.0 } else { 2.0 * cu };
+                    for (d, &(v, cv)) in columns.iter().enumerate() {
+                        if cv == 0.0 {
                             continue;
                         }
-                        let su = u as usize % 3;
-                        for d in 0..3 {
-                            let (v, cv) = self.member[3 * q + d];
-                            if cv == 0.0 {
-                                continue;
-                            }
-                            let e = 3 * su + v as usize % 3;
-                            k[at][e] += cu * cv * class.k[blk][3 * c + d];
-                            if c == d {
-                                m[at][e] += cu * cv * class.m[blk][c];
-                            }
+                        let e = 3 * su + v as usize % 3;
+                        k[at][e] += weight * cv * class.k[blk][3 * c + d];
+                        if c == d {
+                            m[at][e] += weight * cv * class.m[blk][c];
                         }
                     }
                 }
