@@ -102,8 +102,10 @@ impl ShiftedCholesky {
 
     /// Factors one symmetry class's `K - shift M`, given already shifted as `shifted` (its
     /// mass differs by component, [`super::symmetric`]), eliminating nodes in the order
-    /// `nodes`. Every class of a model has the same pattern, so all but the first reuse the
-    /// first's symbolic factorisation.
+    /// `nodes`. Every class of a model has the same pattern, and the halves of the classes
+    /// one swap splits another, so all but the first of each reuse its symbolic
+    /// factorisation (two patterns are kept: the classes' and one swap's halves, or a
+    /// sphere's halves split by two different swaps).
     pub fn for_class(
         pattern: &BlockPattern,
         shifted: &[[f64; 9]],
