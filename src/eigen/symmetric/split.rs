@@ -28,7 +28,7 @@
 use super::mirrors::{ClassProblem, Lifting, Mirrors, ReducedRow};
 use crate::fem::sparse::BlockPattern;
 
-/// One of the two halves of a class that swap `swap` maps onto itself.
+/// One of the two halves of a class that an axis swap maps onto itself.
 pub(super) struct Split {
     /// Each class DOF's subclass DOF and coefficient in that DOF's basis vector (`0.0`: the
     /// DOF is not in this half).
