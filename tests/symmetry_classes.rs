@@ -96,8 +96,25 @@ fn classes_give_the_whole_model_s_lowest_modes() {
             0b111,
             all_swaps,
         ),
-        // 1.5k DOFs, just over `MIN_DOFS`: eight classes of ~190 DOFs for 60 modes.
-        ("bar hex8i", small_bar, hex8i, 60, 0b111, vec![(1, 2)]),
+        // 1.5k DOFs, just over `MIN_DOFS`: eight classes of ~190 DOFs for 60 modes, and for
+        // 20 (the SciPy comparison's smallest case), whose classes expect so few pairs that
+        // they iterate in blocks of two (`symmetric::TINY_BLOCK_SIZE`).
+        (
+            "bar hex8i",
+            small_bar.clone(),
+            hex8i,
+            60,
+            0b111,
+            vec![(1, 2)],
+        ),
+        (
+            "bar hex8i, 20 modes",
+            small_bar,
+            hex8i,
+            20,
+            0b111,
+            vec![(1, 2)],
+        ),
         (
             "steel bar hex27x2 on blocks",
             steel_bar,
