@@ -36,12 +36,14 @@ use std::time::Instant;
 /// solve's eight.
 const MIN_SENTINELS: usize = 8;
 
-/// Basis length up to which a band projected matrix's full eigenvectors come from the band
-/// reduction and QL with every row accumulated ([`band_eigen`] from row 0, `O(n^3)` with small
-/// constants) instead of the dense decomposition: 118 against 214 us at 40 vectors in blocks
-/// of two, 580 against 300-350 at 48 in blocks of four (one core, interleaved). A 20-mode
-/// request's classes end at 30-50 vectors (`symmetric::TINY_BLOCK_SIZE`): the SciPy
-/// comparison's bar 0.96x, the 4.9k-DOF sphere 0.98x.
+/// Basis length up to which a check on a band projected matrix computes its whole eigenvectors
+/// ([`band_eigen`] from row 0: the band reduction and QL with every row accumulated, `O(n^3)`
+/// with small constants), not only their last block's rows: at this size that costs about
+/// what the rows alone do (118 against 110 us at 40 vectors in blocks of two, one core), and
+/// the check that finds the request met needs no dense decomposition (214 us there; 580
+/// against 300-350 for the accumulation at 48 vectors in blocks of four, which is why the
+/// limit). A 20-mode request's classes end at 30-50 vectors (`symmetric::TINY_BLOCK_SIZE`):
+/// the SciPy comparison's bar 0.96x, the 4.9k-DOF sphere 0.98x.
 const BAND_VECTORS_MAX_LEN: usize = 40;
 
 /// What a convergence check found.
@@ -70,7 +72,7 @@ pub(super) struct RitzPairs {
     /// Eigenvalues of the projected matrix, ascending.
     pub theta: Vec<f64>,
     /// Its eigenvectors, by column; `None` when only their last block's rows were computed
-    /// (the band path of [`RitzPairs::new`]).
+    /// (the band path of [`RitzPairs::new`] beyond [`BAND_VECTORS_MAX_LEN`] vectors).
     pub y: Option<Mat<f64>>,
     /// Indices of the positive `theta`, descending: ascending `lambda`.
     pub order: Vec<usize>,
@@ -85,8 +87,9 @@ impl RitzPairs {
     /// its first `count` pairs in `order`. With `band = Some(kd)`, `h` is block tridiagonal of
     /// half-bandwidth `kd` (a Lanczos basis that has not restarted) and only the eigenvalues
     /// and the last block's eigenvector rows are computed ([`band_eigen`], ~1.5 ms where the
-    /// dense decomposition takes ~4 ms at 200 vectors); entries beyond the band, which the
-    /// full reorthogonalisation records at rounding level, are left out.
+    /// dense decomposition takes ~4 ms at 200 vectors), or the whole eigenvectors up to
+    /// [`BAND_VECTORS_MAX_LEN`] vectors; entries beyond the band, which the full
+    /// reorthogonalisation records at rounding level, are left out.
     pub fn new(
         ops: &Operators,
         shift: f64,
@@ -102,25 +105,16 @@ impl RitzPairs {
     }
 
     /// The same pairs with their full eigenvectors: from the band path's answer, the dense
-    /// decomposition, or on a band of at most [`BAND_VECTORS_MAX_LEN`] vectors the band
-    /// reduction with every row accumulated (the Gram matrix, which depends only on the next
-    /// block, is kept).
-    pub fn with_vectors(
+    /// decomposition (the Gram matrix, which depends only on the next block, is kept).
+    pub fn dense(
         self,
         h: &Mat<f64>,
         next: &NextBlock<'_>,
         count: usize,
-        band: Option<usize>,
     ) -> Result<Self, EigenError> {
-        let whole = band.filter(|_| h.nrows() <= BAND_VECTORS_MAX_LEN);
-        match (&self.y, whole) {
-            (Some(_), _) => Ok(self),
-            (None, Some(kd)) => {
-                let BandEigen { values, rows } = band_eigen(h, kd, 0)?;
-                let y_last = rows.get(next.last.clone(), ..).to_owned();
-                Self::finish(self.gram, next, count, values, Some(rows), y_last)
-            }
-            (None, None) => Self::with_gram(self.gram, h, next, count, None),
+        match self.y {
+            Some(_) => Ok(self),
+            None => Self::with_gram(self.gram, h, next, count, None),
         }
     }
 
@@ -132,9 +126,14 @@ impl RitzPairs {
         band: Option<usize>,
     ) -> Result<Self, EigenError> {
         let (theta, y, y_last_of) = match band {
-            Some(kd) => {
+            Some(kd) if h.nrows() > BAND_VECTORS_MAX_LEN => {
                 let BandEigen { values, rows } = band_eigen(h, kd, next.last.start)?;
                 (values, None, rows)
+            }
+            Some(kd) => {
+                let BandEigen { values, rows } = band_eigen(h, kd, 0)?;
+                let last = rows.get(next.last.clone(), ..).to_owned();
+                (values, Some(rows), last)
             }
             None => {
                 let (theta, y) = sym_eigen(h)?;
@@ -142,19 +141,6 @@ impl RitzPairs {
                 (theta, Some(y), rows)
             }
         };
-        Self::finish(gram, next, count, theta, y, y_last_of)
-    }
-
-    /// The pairs from the projected matrix's eigenvalues `theta` (ascending), their vectors
-    /// `y` where computed, and the rows of the last block of every vector (`y_last_of`).
-    fn finish(
-        gram: Mat<f64>,
-        next: &NextBlock<'_>,
-        count: usize,
-        theta: Vec<f64>,
-        y: Option<Mat<f64>>,
-        y_last_of: Mat<f64>,
-    ) -> Result<Self, EigenError> {
         let order: Vec<usize> = (0..theta.len()).rev().filter(|&i| theta[i] > 0.0).collect();
         let count = count.min(order.len());
         let y_last = Mat::from_fn(next.last.len(), count, |i, j| y_last_of[(i, order[j])]);
@@ -218,7 +204,7 @@ impl RitzCheck<'_> {
         if let Some(worst) = worst {
             return Ok(Check::Converged(converged, worst));
         }
-        let ritz = ritz.with_vectors(h, next, self.nev, self.band)?;
+        let ritz = ritz.dense(h, next, self.nev)?;
         self.verify(basis, &ritz, converged)
     }
 
