@@ -377,7 +377,7 @@ const SMALL_BLOCK_SIZE: usize = 4;
 /// a class factor of a few hundred DOFs, and a narrower block checks a shorter, narrower band
 /// and overshoots the last pair by fewer vectors. Measured (hex8i, 20 modes, cold class solves,
 /// best of 5, interleaved rounds), blocks of 2 against 4: the SciPy comparison's 1.5k-DOF bar
-/// (classes of 192 DOFs) 0.75x, the 8.5k-DOF sphere 0.95x, the 4.6k-DOF bowl 1.01x. Classes
+/// (classes of 192 DOFs) 0.75x, the 9.9k-DOF sphere 0.95x, the 4.6k-DOF bowl 1.01x. Classes
 /// that expect 13 pairs (60-mode requests on the small presets, ~450 DOFs) were mixed (the
 /// iron pipe 0.91x, the wooden slat and block 1.03x) and keep blocks of 4.
 const TINY_BLOCK_SIZE: usize = 2;
