@@ -358,8 +358,9 @@ const BELOW_SHARE: usize = 20;
 /// filled their bases and restarted once; with twelve none did.
 const RIGID_ROOM: usize = 12;
 
-/// Lanczos block size of a class that expects at most [`SMALL_BLOCK_MAX_PAIRS`] pairs (the
-/// whole model's, and a larger class's, is [`EigenOptions::block_size`], 8). A block Krylov
+/// Lanczos block size of a class that expects more than [`TINY_BLOCK_MAX_PAIRS`] and at most
+/// [`SMALL_BLOCK_MAX_PAIRS`] pairs (the whole model's, and a larger class's, is
+/// [`EigenOptions::block_size`], 8). A block Krylov
 /// space of `j` blocks holds polynomials of degree `j` only, so a block method needs a few
 /// blocks beyond its wanted pairs whatever their number: with blocks of 4 the default bowl's
 /// three classes (25 and 15 pairs) converged in 252 vectors against 344 with blocks of 8, the

@@ -49,7 +49,7 @@ pub(crate) struct Voice {
     pub key: Option<u8>,
     /// Frequency ratio against the object's own size (the "pitch" key mapping).
     pub pitch: f64,
-    /// Per-note tuning ([`super::super::Expression::TuningSemitones`]) as a frequency ratio on
+    /// Per-note tuning ([`super::Expression::TuningSemitones`]) as a frequency ratio on
     /// top of `pitch` (1 = none).
     pub bend: f64,
     /// Per-note pressure, 0 to 1: adds its share of the voicing's pressure decay.

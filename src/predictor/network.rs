@@ -2,7 +2,7 @@
 //! band representation ([`super::bands`]), sized for one CPU core.
 //!
 //! Where it sits: [`super::Predictor`] runs [`ModeNet::trunk`] once per shape edit (the
-//! expensive part) and [`Trunk::strike`] per strike (one cell's 1x1 head: microseconds);
+//! expensive part) and [`super::Prediction::strike`] per strike (one cell's 1x1 head: microseconds);
 //! [`super::train`] fits it with [`ModeNet::loss`].
 //!
 //! The architecture follows Deep-Modal (Jin et al. 2020, sec. 4.2: an encoder of

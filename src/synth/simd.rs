@@ -140,7 +140,7 @@ wide_lanes!(wide::f32x8, f32, 8);
 wide_lanes!(wide::f64x4, f64, 4);
 
 /// 8 x f32 in an AVX register. Only constructed inside `#[target_feature(enable = "avx2,fma")]`
-/// functions, which are only called after [`SimdBackend::Avx2Fma::is_available`].
+/// functions, which are only called after [`SimdBackend::is_available`] for [`SimdBackend::Avx2Fma`].
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(crate) struct F32x8Avx(__m256);

@@ -49,7 +49,7 @@ pub fn mass_trace(pattern: &BlockPattern, m: &[f64]) -> f64 {
 }
 
 /// `Y = M X` for a block of vectors (see [`RowBlock`]), `M` given by its scalars `a`
-/// ([`MassBlocks`]). Same contract as [`super::spmm`]: `x` and `y` start at the block's first
+/// ([`MassBlocks`]). Same contract as [`fn@super::spmm`]: `x` and `y` start at the block's first
 /// column and may be wider.
 pub fn spmm_mass(pattern: &BlockPattern, a: &[f64], x: &[f64], y: &mut [f64], l: RowBlock) {
     spmm_component_diagonal(pattern, a, x, y, l);

@@ -2,7 +2,7 @@
 //! (rad/s), four modes at a time.
 //!
 //! Where it sits: [`super::OscillatorBank::retune`] lays the modes out in kernel slots and
-//! [`super::OscillatorBank::retune_in_place`] keeps the layout; both then call [`write`] for the
+//! [`super::OscillatorBank::retune_in_place`] keeps the layout; both then call [`fn@write`] for the
 //! constants the render needs, and `retune_in_place` calls [`carry`] first to bring every mode's
 //! exact amplitude to the retune instant. With per-note expression a voice is re-tuned every
 //! block, so this is the audio thread's second-largest cost after rendering (issue 15).

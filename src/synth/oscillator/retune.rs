@@ -349,7 +349,7 @@ impl OscillatorBank {
     /// `extra_decay_per_s`, at the next sample, keeping each mode's phase and amplitude: the
     /// cheap re-tune of per-note expression, a few f32 operations per mode ([`glide`]).
     /// Refused, with the bank unchanged, without a key since the last exact re-tune or
-    /// outside the key's range ([`GLIDE_MAX_LN_RATIO`], no mode crossing fs/4). Never
+    /// outside the key's range ([`super::GLIDE_MAX_LN_RATIO`], no mode crossing fs/4). Never
     /// allocates.
     pub fn glide(&mut self, ratio: f64, extra_decay_per_s: f64) -> Result<(), GlideError> {
         self.glide.check(ratio, extra_decay_per_s)?;
