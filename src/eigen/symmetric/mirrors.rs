@@ -239,9 +239,20 @@ impl Mirrors {
         let orbits = self.reps.len();
         let mut row_ptr = Vec::with_capacity(orbits + 1);
         row_ptr.push(0);
-        let (mut col, mut k, mut m) = (Vec::new(), Vec::new(), Vec::new());
-        let mut row = ReducedRow::new(orbits);
         let p = &model.pattern;
+        // The representatives' rows bound the reduced rows' lengths (orbits merge columns):
+        // reserved once, the growing rows are not copied by reallocation.
+        let bound: usize = self
+            .reps
+            .iter()
+            .map(|&r| p.row_ptr[r + 1] - p.row_ptr[r])
+            .sum();
+        let (mut col, mut k, mut m) = (
+            Vec::with_capacity(bound),
+            Vec::with_capacity(bound),
+            Vec::with_capacity(bound),
+        );
+        let mut row = ReducedRow::new(orbits);
         for (o, &rep) in self.reps.iter().enumerate() {
             let present: [bool; 3] = std::array::from_fn(|c| self.present(o, c, chi));
             let columns = p.col[p.row_ptr[rep]..p.row_ptr[rep + 1]].iter();

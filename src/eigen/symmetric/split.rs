@@ -134,10 +134,19 @@ impl Split {
         let p = &class.pattern;
         let mut row_ptr = Vec::with_capacity(nodes + 1);
         row_ptr.push(0);
-        let (mut col, mut k) = (Vec::new(), Vec::<[f64; 9]>::new());
+        // The representatives' rows bound the half's rows (reserved, as in `Mirrors::reduce`).
+        let bound: usize = self
+            .reps
+            .iter()
+            .map(|&r| p.row_ptr[r as usize + 1] - p.row_ptr[r as usize])
+            .sum();
+        let (mut col, mut k) = (
+            Vec::with_capacity(bound),
+            Vec::<[f64; 9]>::with_capacity(bound),
+        );
         // The mass in full blocks while it is summed; split into diagonals and the few
         // off-diagonal entries below.
-        let mut m = Vec::<[f64; 9]>::new();
+        let mut m = Vec::<[f64; 9]>::with_capacity(bound);
         let mut row = ReducedRow::new(nodes);
         for (r, &rep) in self.reps.iter().enumerate() {
             let rep = rep as usize;
