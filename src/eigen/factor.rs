@@ -82,7 +82,7 @@ impl ShiftedCholesky {
     /// another Poisson's ratio, a shift) reuses it: the symbolic part is about 8 ms of the
     /// default object's 76-100 ms factorisation (`cargo bench --bench eigen -- factor_bowl16`).
     pub fn new(model: &FemModel, shift: f64, par: Par) -> Result<Self, EigenError> {
-        let nodes = ordering::nested_dissection(model);
+        let nodes = ordering::fill_reducing_for(model);
         let kept = (model.pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT);
         Self::factor(&model.pattern, &model.k, &model.m, shift, &nodes, par, kept)
     }

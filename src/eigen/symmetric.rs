@@ -149,12 +149,8 @@ fn solve_classes(
         ModeCount::First(k) => share_of(halved, k),
         ModeCount::Below(_) => share_of(halved, BELOW_SHARE),
     };
-    // Elimination orders: the classes' on the orbit representatives, a half's on its own
-    // (one per swap that splits).
-    let order_of = |orbits: &mut dyn Iterator<Item = usize>| {
-        let at: Vec<[i64; 3]> = orbits.map(|o| coords[o]).collect();
-        ordering::nested_dissection_of(&at, p)
-    };
+    // Elimination orders (whichever of dissection and minimum degree fills less): the
+    // classes' on the orbit representatives, a half's on its own (one per swap that splits).
     let mut orders: Vec<Option<Vec<usize>>> = vec![None; 1 + mirrors.swaps().len()];
     let (mut iterate_ms, mut iterations) = (0.0, 0);
     let mut solved: Vec<ClassAnswer> = Vec::with_capacity(parts.len());
@@ -164,21 +160,24 @@ fn solve_classes(
     let mut class_of_halves: Option<ClassProblem> = None;
     for (chi, split, images) in parts {
         let halved = split.is_some();
-        let (class, nodes) = match &split {
-            None => {
-                let nodes = orders[0].get_or_insert_with(|| order_of(&mut (0..coords.len())));
-                (mirrors.reduce(model, chi), &*nodes)
-            }
+        let (class, slot) = match &split {
+            None => (mirrors.reduce(model, chi), 0),
             Some((swap, half)) => {
                 if class_of_halves.as_ref().is_none_or(|c| c.chi != chi) {
                     class_of_halves = Some(mirrors.reduce(model, chi));
                 }
                 let class = class_of_halves.as_ref().expect("reduced above");
-                let nodes = orders[1 + swap]
-                    .get_or_insert_with(|| order_of(&mut half.reps().iter().map(|&o| o as usize)));
-                (half.reduce(class), &*nodes)
+                (half.reduce(class), 1 + swap)
             }
         };
+        // Every class has the same pattern, and so have the halves of one swap: one order each.
+        let nodes = &*orders[slot].get_or_insert_with(|| {
+            let at: Vec<[i64; 3]> = match &split {
+                None => coords.clone(),
+                Some((_, half)) => half.reps().iter().map(|&o| coords[o as usize]).collect(),
+            };
+            ordering::fill_reducing(&class.pattern, &at, p)
+        });
         let shifted = class.shifted(shift);
         let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, nodes)?;
         drop(shifted);
