@@ -12,11 +12,7 @@ use crate::fem::sparse::BlockPattern;
 use crate::fem::sparse::RowBlock;
 use crate::fem::{ordering, sparse, FemModel};
 use faer::dyn_stack::MemStack;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
-    SymmetricOrdering,
-};
-use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
 use faer::{MatMut, Par, Side};
 use rows::SupernodalRows;
 use std::sync::Arc;
@@ -144,19 +140,9 @@ impl ShiftedCholesky {
         let analyse = || {
             // The symbolic analysis reads the upper triangle.
             let upper = sparse::permuted_shifted_csc(pattern, k, m, shift, nodes, Side::Upper);
-            // Always supernodal (faer would pick its simplicial factor for the sparsest
-            // objects): the solves in `rows` read the supernodal layout.
-            let params = CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            };
-            let symbolic = factorize_symbolic_cholesky(
-                upper.symbolic(),
-                Side::Upper,
-                SymmetricOrdering::Identity,
-                params,
-            )
-            .map_err(|e| fail(&e));
+            let symbolic =
+                ordering::supernodal_symbolic(upper.symbolic(), SymmetricOrdering::Identity)
+                    .map_err(|e| fail(&e));
             recycle_csc(upper);
             symbolic
         };

@@ -24,9 +24,10 @@ use super::FemModel;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::linalg::{amd, SupernodalThreshold};
+use faer::sparse::FaerError;
 use faer::sparse::{SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::Side;
 
@@ -163,18 +164,23 @@ fn node_factor_len(pattern: &BlockPattern, order: &[usize]) -> Option<usize> {
         inv[v] = k;
     }
     let perm = PermRef::new_checked(&fwd, &inv, n);
+    let symbolic = supernodal_symbolic(upper.as_ref(), SymmetricOrdering::Custom(perm)).ok()?;
+    Some(symbolic.len_val())
+}
+
+/// faer's symbolic Cholesky factorisation of the upper triangle `upper`, always supernodal
+/// (faer would pick its simplicial factor for the sparsest objects; the Lanczos solves in
+/// `eigen/factor/rows.rs` read the supernodal layout, and the fill compared in
+/// [`fill_reducing`] is that layout's).
+pub fn supernodal_symbolic<I: faer::Index>(
+    upper: SymbolicSparseColMatRef<'_, I>,
+    ordering: SymmetricOrdering<'_, I>,
+) -> Result<SymbolicCholesky<I>, FaerError> {
     let params = CholeskySymbolicParams {
         supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
         ..Default::default()
     };
-    let symbolic = factorize_symbolic_cholesky(
-        upper.as_ref(),
-        Side::Upper,
-        SymmetricOrdering::Custom(perm),
-        params,
-    )
-    .ok()?;
-    Some(symbolic.len_val())
+    factorize_symbolic_cholesky(upper, Side::Upper, ordering, params)
 }
 
 #[cfg(test)]
