@@ -158,12 +158,11 @@ fn node_factor_len(pattern: &BlockPattern, order: &[usize]) -> Option<usize> {
         col_ptr.push(row_idx.len());
     }
     let upper = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-    let fwd: Vec<usize> = order.to_vec();
     let mut inv = vec![0usize; n];
-    for (k, &v) in fwd.iter().enumerate() {
+    for (k, &v) in order.iter().enumerate() {
         inv[v] = k;
     }
-    let perm = PermRef::new_checked(&fwd, &inv, n);
+    let perm = PermRef::new_checked(order, &inv, n);
     let symbolic = supernodal_symbolic(upper.as_ref(), SymmetricOrdering::Custom(perm)).ok()?;
     Some(symbolic.len_val())
 }
