@@ -5,7 +5,8 @@
 //! plate or a sphere about three); their `K` and `M` commute with the mirrors, so the DOF space
 //! splits into `2^m` classes (one per character `chi` of the mirror group `Z2^m`) that neither
 //! matrix couples, and each class is an eigenproblem of about `1/2^m` the size. Its factor is
-//! far smaller than the whole one (the default bowl's quarter: 0.40M nonzeros against 2.1M,
+//! far smaller than the whole one (the default bowl's quarter: 0.40M nonzeros against 2.1M
+//! with the lattice dissection, 0.23M by minimum degree since stop 54, [`crate::fem::ordering`];
 //! ~10 ms to factor against ~60), its Krylov vectors a quarter as long and its modes a quarter
 //! as many. This is the symmetry-adapted basis of group representation theory (Bossavit 1986,
 //! "Symmetry, groups and boundary value problems"; Zienkiewicz, Taylor and Zhu, sec. 9.16).
