@@ -172,12 +172,12 @@ fn solve_classes(
             }
         };
         // Every class has the same pattern, and so have the halves of one swap: one order each.
-        let nodes = &*orders[slot].get_or_insert_with(|| {
-            let at: Vec<[i64; 3]> = match &split {
-                None => coords.clone(),
-                Some((_, half)) => half.reps().iter().map(|&o| coords[o as usize]).collect(),
-            };
-            ordering::fill_reducing(&class.pattern, &at, p)
+        let nodes = &*orders[slot].get_or_insert_with(|| match &split {
+            None => ordering::fill_reducing(&class.pattern, &coords, p),
+            Some((_, half)) => {
+                let at: Vec<[i64; 3]> = half.reps().iter().map(|&o| coords[o as usize]).collect();
+                ordering::fill_reducing(&class.pattern, &at, p)
+            }
         });
         let shifted = class.shifted(shift);
         let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, nodes)?;

@@ -36,19 +36,20 @@ const LEAF_NODES: usize = 48;
 
 /// A node permutation: `order[k]` is the node eliminated `k`-th.
 pub fn nested_dissection(model: &FemModel) -> Vec<usize> {
-    let p = model.kind.order() as i64;
-    let coords: Vec<[i64; 3]> = (0..model.nodes())
+    nested_dissection_of(&lattice_coords(model), model.kind.order() as i64)
+}
+
+/// Every node's lattice coordinates, what [`nested_dissection_of`] splits.
+fn lattice_coords(model: &FemModel) -> Vec<[i64; 3]> {
+    (0..model.nodes())
         .map(|n| model.node_lattice_coords(n))
-        .collect();
-    nested_dissection_of(&coords, p)
+        .collect()
 }
 
 /// [`fill_reducing`] for the whole of `model`: the order its Lanczos factor eliminates nodes in.
 pub fn fill_reducing_for(model: &FemModel) -> Vec<usize> {
-    let coords: Vec<[i64; 3]> = (0..model.nodes())
-        .map(|n| model.node_lattice_coords(n))
-        .collect();
-    fill_reducing(&model.pattern, &coords, model.kind.order() as i64)
+    let p = model.kind.order() as i64;
+    fill_reducing(&model.pattern, &lattice_coords(model), p)
 }
 
 /// Nested dissection of any node set on a lattice whose element boundaries lie every `p`
@@ -225,7 +226,7 @@ mod tests {
             ),
         ] {
             let m = model(shape);
-            let coords: Vec<[i64; 3]> = (0..m.nodes()).map(|n| m.node_lattice_coords(n)).collect();
+            let coords = lattice_coords(&m);
             let p = m.kind.order() as i64;
             let dissection = nested_dissection_of(&coords, p);
             let degree = minimum_degree(&m.pattern).expect("amd");
