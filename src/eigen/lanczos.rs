@@ -27,7 +27,7 @@ use super::factor::ShiftedCholesky;
 use super::{EigenError, EigenOptions, EigenSolution, Operators, Stop};
 use crate::buffer::KeptColumns;
 use crate::fem::FemModel;
-use check::{Check, NextBlock, RitzCheck, RitzPairs};
+use check::{Check, NextBlock, Progress, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use qr::{block_qr, chol_qr, QrRefusal};
@@ -351,7 +351,7 @@ impl Krylov {
             if self.basis.len >= self.next_check {
                 match checker.run(&self.basis, &self.projected(), &block.next())? {
                     Check::Done(solution) => return Ok(Expanded::Done(solution, block)),
-                    Check::Converged(converged, _) => self.schedule_check(converged),
+                    Check::Converged(progress) => self.schedule_check(progress),
                 }
             }
             if !self.make_fit(&block) {
@@ -361,10 +361,13 @@ impl Krylov {
         }
     }
 
-    /// Schedules the next convergence check after one found `converged` pairs converged.
-    fn schedule_check(&mut self, converged: usize) {
+    /// Schedules the next convergence check after one found `progress`; the pairs aimed at
+    /// rise to what the Ritz values say the request needs.
+    fn schedule_check(&mut self, progress: Progress) {
         let len = self.basis.len;
-        self.next_check = len + vectors_before_next_check(len, converged, self.aim, self.block);
+        self.aim = self.aim.max(progress.needed);
+        self.next_check =
+            len + vectors_before_next_check(len, progress.converged, self.aim, self.block);
     }
 
     /// Whether the basis has room for `block`, growing it by half (within `room`) where it

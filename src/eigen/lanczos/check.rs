@@ -23,8 +23,8 @@
 //! block products as wide as the request, two-thirds of a check's cost).
 
 use super::super::{
-    select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, Operators, SolveTimings,
-    SolverKind, Stop, Which,
+    select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
+    SolveTimings, SolverKind, Stop, Which,
 };
 use super::{tall_times_small, Basis};
 use crate::eigen::band::{band_eigen, BandEigen};
@@ -50,8 +50,22 @@ const BAND_VECTORS_MAX_LEN: usize = 40;
 pub(super) enum Check {
     /// Every wanted pair has converged: the answer.
     Done(Box<EigenSolution>),
-    /// Not yet: the number of leading pairs that converged and the residual of the next one.
-    Converged(usize, f64),
+    /// Not yet: how far convergence has got.
+    Converged(Progress),
+}
+
+/// How far a check found convergence, which schedules the next one.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Progress {
+    /// Leading pairs that converged.
+    pub converged: usize,
+    /// The residual of the first pair that did not.
+    pub worst: f64,
+    /// Pairs the request needs at least, as the Ritz values tell: for a "below" request, one
+    /// more than the Ritz values below its bound (the `j`-th Ritz value bounds the `j`-th
+    /// eigenvalue from above, so at least that many eigenvalues lie below, and the request is
+    /// met only when a converged pair lies above); zero for a "first k" request.
+    pub needed: usize,
 }
 
 /// The block that would extend the basis: `Q`, `M Q` and its coupling `R` to the last basis
@@ -202,7 +216,11 @@ impl RitzCheck<'_> {
         let ritz = RitzPairs::new(self.ops, self.shift, h, next, self.nev, self.band)?;
         let (converged, worst) = self.estimate(&ritz)?;
         if let Some(worst) = worst {
-            return Ok(Check::Converged(converged, worst));
+            return Ok(Check::Converged(Progress {
+                converged,
+                worst,
+                needed: self.needed(&ritz),
+            }));
         }
         let ritz = ritz.dense(h, next, self.nev)?;
         self.verify(basis, &ritz, converged)
@@ -229,6 +247,19 @@ impl RitzCheck<'_> {
         }
         let complete = select(ops, &estimated, self.options.count).complete;
         Ok((estimated.len(), (!complete).then_some(worst)))
+    }
+
+    /// [`Progress::needed`] of these pairs.
+    fn needed(&self, ritz: &RitzPairs) -> usize {
+        match self.options.count {
+            ModeCount::First(_) => 0,
+            ModeCount::Below(limit) => {
+                let below = (0..ritz.order.len())
+                    .take_while(|&j| ritz.lambda(self.shift, j) <= limit)
+                    .count();
+                below + 1
+            }
+        }
     }
 
     /// `||K|| + |lambda| ||M||`, the residual's scale (Jin et al. 2022, eq. 6).
@@ -290,7 +321,11 @@ impl RitzCheck<'_> {
         }
         let sel = select(self.ops, &pairs, self.options.count);
         if !sel.complete {
-            return Ok(Check::Converged(pairs.len(), worst));
+            return Ok(Check::Converged(Progress {
+                converged: pairs.len(),
+                worst,
+                needed: self.needed(ritz),
+            }));
         }
         let timings = SolveTimings {
             setup_ms: 0.0,

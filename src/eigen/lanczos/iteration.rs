@@ -8,7 +8,7 @@
 //! met are all still valid for the second (the Krylov space only grows), so the second request
 //! costs the blocks it needs beyond the first, not a new solve.
 
-use super::check::{Check, RitzCheck, RitzPairs};
+use super::check::{Check, Progress, RitzCheck, RitzPairs};
 use super::{basis_cap, Expanded, Krylov, Residual, ShiftedCholesky};
 use crate::eigen::{EigenError, EigenOptions, EigenSolution, ModeCount, Operators, Stop};
 use std::time::Instant;
@@ -117,7 +117,7 @@ impl Iteration {
         if let Some(block) = self.pending.take() {
             match checker.run(&krylov.basis, &krylov.projected(), &block.next())? {
                 Check::Done(solution) => return Ok(self.met(&checker, block, *solution)),
-                Check::Converged(converged, _) => krylov.schedule_check(converged),
+                Check::Converged(progress) => krylov.schedule_check(progress),
             }
             if krylov.make_fit(&block) {
                 krylov.append(block);
@@ -150,7 +150,11 @@ impl Iteration {
             let check = checker.nev.min(ritz.order.len());
             let rigid = match checker.verify(&krylov.basis, &ritz, check)? {
                 Check::Done(solution) => return Ok(self.met(&checker, full, *solution)),
-                Check::Converged(c, w) => {
+                Check::Converged(Progress {
+                    converged: c,
+                    worst: w,
+                    ..
+                }) => {
                     (converged_count, worst) = (c, w);
                     (0..c)
                         .filter(|&j| ops.is_rigid(ritz.lambda(shift, j)))
