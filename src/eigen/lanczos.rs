@@ -27,7 +27,7 @@ use super::factor::ShiftedCholesky;
 use super::{EigenError, EigenOptions, EigenSolution, Operators, Stop};
 use crate::buffer::KeptColumns;
 use crate::fem::FemModel;
-use check::{Check, NextBlock, Progress, RitzCheck, RitzPairs};
+use check::{Answer, Check, NextBlock, Progress, RitzCheck, RitzPairs};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 use qr::{block_qr, chol_qr, QrRefusal};
@@ -258,7 +258,7 @@ impl Residual {
 enum Expanded {
     /// Every wanted pair converged; the block that would have extended the basis is kept for
     /// a later, larger request ([`Iteration::run`]).
-    Done(Box<EigenSolution>, Residual),
+    Done(Box<Answer>, Residual),
     /// The basis is full.
     Full(Residual),
 }
@@ -350,7 +350,7 @@ impl Krylov {
             };
             if self.basis.len >= self.next_check {
                 match checker.run(&self.basis, &self.projected(), &block.next())? {
-                    Check::Done(solution) => return Ok(Expanded::Done(solution, block)),
+                    Check::Done(answer) => return Ok(Expanded::Done(answer, block)),
                     Check::Converged(progress) => self.schedule_check(progress),
                 }
             }

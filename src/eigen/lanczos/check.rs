@@ -48,10 +48,32 @@ const BAND_VECTORS_MAX_LEN: usize = 40;
 
 /// What a convergence check found.
 pub(super) enum Check {
-    /// Every wanted pair has converged: the answer.
-    Done(Box<EigenSolution>),
+    /// Every wanted pair has converged: the answer, with what its verification found.
+    Done(Box<Answer>),
     /// Not yet: how far convergence has got.
     Converged(Progress),
+}
+
+/// A met request's answer and the verification it came from.
+pub(super) struct Answer {
+    /// The answer.
+    pub solution: EigenSolution,
+    /// Every converged pair the verification found, the answer's and those above it.
+    pub verified: Verified,
+}
+
+/// The converged pairs a verification found, ascending and contiguous from the lowest, with
+/// their Ritz vectors: a later request on the same basis that they meet is answered from them
+/// without a check ([`super::iteration::Iteration::run`]). A class asked again below a higher
+/// bound often is: its first answer stopped at the first converged pair above the old bound,
+/// and that pair is above the new one too.
+pub(super) struct Verified {
+    /// `(lambda, column of x, residual)` of each converged pair.
+    pub pairs: Vec<(f64, usize, f64)>,
+    /// The Ritz vectors of the verified pairs and their guards, by column.
+    pub x: Mat<f64>,
+    /// The tolerance the pairs were verified to.
+    pub tolerance: f64,
 }
 
 /// How far a check found convergence, which schedules the next one.
@@ -202,6 +224,8 @@ pub(super) struct RitzCheck<'a> {
     pub band: Option<usize>,
     /// The caller's interruption poll, checked once per block.
     pub stop: Stop<'a>,
+    /// Projected matrices decomposed so far (checks and restarts).
+    pub decompositions: std::cell::Cell<usize>,
 }
 
 impl RitzCheck<'_> {
@@ -213,6 +237,7 @@ impl RitzCheck<'_> {
         h: &Mat<f64>,
         next: &NextBlock<'_>,
     ) -> Result<Check, EigenError> {
+        self.decompositions.set(self.decompositions.get() + 1);
         let ritz = RitzPairs::new(self.ops, self.shift, h, next, self.nev, self.band)?;
         let (converged, worst) = self.estimate(&ritz)?;
         if let Some(worst) = worst {
@@ -286,7 +311,10 @@ impl RitzCheck<'_> {
         let lambdas: Vec<f64> = (0..check).map(|j| ritz.lambda(self.shift, j)).collect();
         let mut res: Vec<f64> = (0..check)
             .map(|j| {
-                let norm = x.col(j).norm_l2();
+                // Not faer's `norm_l2`, which rescales against overflow and took 12.6 us on a
+                // 930-entry column against 0.18 for the sum of squares (3.7 % of the aluminium
+                // plate's solve): an M-unit Ritz vector's squares cannot overflow.
+                let norm = x.col(j).squared_norm_l2().sqrt();
                 ritz.residual_norm(j) / (self.scale(lambdas[j]) * norm)
             })
             .collect();
@@ -331,14 +359,22 @@ impl RitzCheck<'_> {
             setup_ms: 0.0,
             iterate_ms: self.started.elapsed().as_secs_f64() * 1e3,
         };
-        Ok(Check::Done(Box::new(solution(
+        let solution = solution(
             &pairs,
             &sel,
             x.as_ref(),
             timings,
             self.restarts,
             SolverKind::Lanczos,
-        ))))
+        );
+        Ok(Check::Done(Box::new(Answer {
+            solution,
+            verified: Verified {
+                pairs,
+                x,
+                tolerance,
+            },
+        })))
     }
 }
 
