@@ -12,10 +12,6 @@ use modalforge::analysis::synthetic::{case, score, Score};
 use modalforge::analysis::{extract, AnalysisOptions, Method};
 use std::time::Instant;
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 fn main() {
     faer::set_global_parallelism(faer::Par::Seq);
     let args: Vec<String> = std::env::args().collect();

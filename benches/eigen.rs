@@ -21,10 +21,6 @@ use modalforge::shape::VoxelGrid;
 use std::hint::black_box;
 use std::time::Instant;
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 fn sphere(n: usize) -> VoxelGrid {
     let diameter = n as f64;
     Primitive::Sphere { diameter }

@@ -25,10 +25,6 @@ use modalforge::material::Material;
 use modalforge::shape::VoxelGrid;
 use std::time::{Duration, Instant};
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 const RATE_HZ: f64 = 48000.0;
 const BLOCK: usize = 64;
 

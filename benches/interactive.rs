@@ -36,10 +36,6 @@ use modalforge::shape::spec::{self, ShapeSpec};
 use modalforge::shape::VoxelGrid;
 use std::time::Instant;
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 /// The plugin's default mode count.
 const MODES: usize = 60;
 

@@ -29,10 +29,6 @@ use modalforge::shape::spec::ShapeSpec;
 use modalforge::shape::VoxelGrid;
 use std::time::Instant;
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 /// Largest hex27 model the full run solves (the 32-voxel bowl's is 137k DOFs, ~10 s).
 const MAX_HEX27_DOFS: usize = 150_000;
 

@@ -13,10 +13,6 @@ use modalforge::predictor::Predictor;
 use modalforge::shape::spec::ShapeSpec;
 use std::hint::black_box;
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 fn grid(spec: &str) -> modalforge::shape::VoxelGrid {
     let ShapeSpec::Primitive { shape, .. } = spec.parse::<ShapeSpec>().expect("shape") else {
         panic!("{spec}: not a primitive")

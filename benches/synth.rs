@@ -10,10 +10,6 @@ use modalforge::synth::{BiquadBank, Excitation, OscillatorBank, SimdBackend};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-/// The programs' allocator, so the figures are theirs ([`modalforge::Allocator`]).
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 const RATE_HZ: f64 = 48000.0;
 const BLOCK: usize = 1024;
 const SIZES: [usize; 4] = [64, 1_000, 10_000, 100_000];

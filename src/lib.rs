@@ -80,20 +80,6 @@ pub mod shape;
 pub mod synth;
 pub mod tuning;
 
-/// The memory allocator of ModalForge's programs: the `modalforge` command line, the plugin
-/// and the standalone app (which links the plugin), and the solver benchmarks, each declare
-/// `#[global_allocator] static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;`.
-///
-/// The shape solve makes tens of small allocations per Lanczos block (blocks of a few
-/// hundred rows, their small Gram and triangular factors), where glibc's aligned allocation
-/// and its consolidation of freed chunks took ~10 % of the SciPy comparison's 1.5k-DOF bar
-/// (perf). Cold solves with mimalloc against the system allocator (one core, interleaved
-/// rounds): that bar at 20 modes (hex8i) 0.915x, the default bowl 0.96x, the tin can 0.98x.
-/// The audio thread allocates nothing either way. The plugin built with nice-plug's
-/// `assert_process_allocs` keeps the allocation-checking wrapper of the system allocator
-/// instead.
-pub use mimalloc::MiMalloc as Allocator;
-
 /// Writes a `clap::ValueEnum`'s command-line name, honouring width and alignment: the one
 /// source of the names that `--help` lists, that reports print and that `Display` shows
 /// (the library's enums and the binary's `--solver` choice implement `Display` with it).

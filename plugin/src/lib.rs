@@ -38,12 +38,6 @@ use std::num::NonZeroU32;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
-/// The programs' allocator ([`modalforge::Allocator`]), for the bundle and the standalone app;
-/// nice-plug's `assert_process_allocs` brings its own (the system allocator, checked).
-#[cfg(not(feature = "assert_process_allocs"))]
-#[global_allocator]
-static ALLOCATOR: modalforge::Allocator = modalforge::Allocator;
-
 /// Most note events taken per block (more are dropped, never allocated for). nice-plug's own
 /// input queue is sized the same (`INPUT_EVENT_CAPACITY`): its default of 1024 is a
 /// `VecDeque` that grows, allocating on the audio thread, when a host delivers more in one
