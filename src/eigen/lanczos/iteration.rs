@@ -46,7 +46,8 @@ pub(crate) struct Iteration {
     pending: Option<Residual>,
     /// What the verification that met the last request found.
     verified: Option<Verified>,
-    /// Projected matrices decomposed by the requests met so far (their checks and restarts).
+    /// Projected matrices decomposed by the requests met so far (their checks and restarts):
+    /// the work a request cost beyond its blocks, which the tests read.
     decompositions: usize,
 }
 
@@ -277,34 +278,6 @@ mod tests {
         (0.5 * (e[count - 1] + e[count]), count)
     }
 
-    /// The 10-voxel bowl (hex8i, 1.6k DOFs).
-    fn small_bowl() -> FemModel {
-        let ShapeSpec::Primitive { shape, .. } = "bowl:d=10,wall=2".parse().expect("spec") else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.24).expect("model")
-    }
-
-    /// A request to residual 1e-9.
-    fn options(count: ModeCount) -> EigenOptions {
-        EigenOptions {
-            count,
-            tolerance: 1e-9,
-            ..Default::default()
-        }
-    }
-
-    /// The room of a class expecting `count` modes below its bound.
-    fn room_below(count: usize) -> FirstRoom {
-        FirstRoom {
-            rigid: 12,
-            below: 2 * count + 12,
-            rigid_expected: 6,
-            below_expected: count + 6,
-        }
-    }
-
     /// An iteration asked for the modes below a bound, then below a bound its converged pairs
     /// already meet (answered from them, [`Iteration::answered`]), then below a higher one, gives
     /// the second request's answer as a fresh solve does: the same eigenvalues (both converge
@@ -314,15 +287,29 @@ mod tests {
     /// second request must cost less than the first solve's basis again: it goes on from it.
     #[test]
     fn a_resumed_iteration_answers_a_higher_bound() {
-        let model = small_bowl();
+        let ShapeSpec::Primitive { shape, .. } = "bowl:d=10,wall=2".parse().expect("spec") else {
+            panic!("a primitive")
+        };
+        let grid = shape.rasterize(1.0, 1.0).expect("grid");
+        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.24).expect("model");
         let ops = Operators::new(&model);
+        let options = |count| EigenOptions {
+            count,
+            tolerance: 1e-9,
+            ..Default::default()
+        };
         let reference = lanczos::solve(&model, &options(ModeCount::First(40))).expect("solve");
         let e = &reference.eigenvalues;
         let (low, low_count) = bound_after(e, 8);
         let (high, high_count) = bound_after(e, 30);
         let shift = -SHIFT_RELATIVE * ops.scale;
         let mut llt = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
-        let room = room_below(low_count);
+        let room = FirstRoom {
+            rigid: 12,
+            below: 2 * low_count + 12,
+            rigid_expected: 6,
+            below_expected: low_count + 6,
+        };
         let first_options = options(ModeCount::Below(low));
         let mut iteration = Iteration::start(&ops, &first_options, room).expect("start");
         let first = iteration
