@@ -26,6 +26,7 @@ use super::super::{
     select, solution, sym_eigen, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
     SolveTimings, SolverKind, Stop, Which,
 };
+use super::qr::gram;
 use super::{tall_times_small, Basis};
 use crate::eigen::band::{band_eigen, BandEigen};
 use faer::Mat;
@@ -136,7 +137,7 @@ impl RitzPairs {
     ) -> Result<Self, EigenError> {
         let mut z = ops.apply_block(Which::K, next.q.as_ref());
         z -= shift * next.mq;
-        let gram = z.transpose() * &z;
+        let gram = gram(&z, &z);
         Self::with_gram(gram, h, next, count, band)
     }
 
@@ -198,9 +199,12 @@ impl RitzPairs {
     /// `||K x - lambda M x||` of the `j`-th pair in `order` (for an M-unit `x`), from the
     /// Lanczos relation.
     fn residual_norm(&self, j: usize) -> f64 {
-        let c = self.coupling.col(j);
-        let gc = &self.gram * c;
-        let cgc: f64 = c.iter().zip(gc.iter()).map(|(a, b)| a * b).sum();
+        let (c, g) = (self.coupling.col(j), &self.gram);
+        let b = c.nrows();
+        // `c^T G c` as a double sum: a product through faer took a fresh column per pair.
+        let cgc: f64 = (0..b)
+            .map(|k| c[k] * (0..b).map(|l| g[(k, l)] * c[l]).sum::<f64>())
+            .sum();
         cgc.max(0.0).sqrt() / self.theta[self.order[j]]
     }
 }
