@@ -194,11 +194,11 @@ fn first_check(nev: usize, b: usize) -> usize {
 /// about a fifth of its wanted pairs converged (the presets' classes: 2-8 of 20-50 at their
 /// first check, and none met its request there), so that check only schedules the next; in
 /// blocks of two (the classes of a 20-mode request, `symmetric::TINY_BLOCK_SIZE`), where a
-/// check costs more than a block, skipping it pays: cold solves against stop 55's build,
-/// three rounds interleaved, the SciPy comparison's 1.5k-DOF bar at 20 modes 0.87x (6.0
-/// against 6.9 ms with assembly), the tin can preset (whose small parts iterate in blocks of
-/// two) 0.95x. With blocks of four and eight the wider classes did no better (the aluminium
-/// plate 1.02x, the brass gong 1.01x, the default bowl 0.99x, interleaved within one build).
+/// check costs more than a block, skipping it pays. Cold solves with assembly, the later
+/// check against `nev + 2b` in one build, rounds interleaved: the SciPy comparison's 1.5k-DOF
+/// bar at 20 modes 0.92x (6.0 against 6.5 ms), the tin can preset (whose small parts iterate
+/// in blocks of two) 0.94x. With blocks of four and eight too the wider classes did no better
+/// (the aluminium plate 1.02x, the brass gong 1.01x, the default bowl 0.99x).
 const LATE_FIRST_CHECK_MAX_BLOCK: usize = 2;
 
 /// Vectors to add before the next convergence check, after one found `converged` of `nev`
