@@ -584,10 +584,25 @@ pub fn auto_resolution(
     by_wave.max(by_wall).clamp(8.0, 96.0) as usize
 }
 
+/// A built-in shape's spec (`"bar:l=16,w=4,h=3"`) rasterised plainly at voxel edge 1: the
+/// unit tests' small objects.
+#[cfg(test)]
+pub(crate) fn test_grid(spec: &str) -> VoxelGrid {
+    let crate::shape::spec::ShapeSpec::Primitive { shape, .. } = spec.parse().expect("spec") else {
+        panic!("{spec}: not a primitive")
+    };
+    shape.rasterize(1.0, 1.0).expect("grid")
+}
+
+/// [`test_grid`]'s object assembled with `kind` and Poisson's ratio `poisson`.
+#[cfg(test)]
+pub(crate) fn test_model(spec: &str, kind: ElementKind, poisson: f64) -> FemModel {
+    FemModel::assemble(&test_grid(spec), kind, poisson).expect("model")
+}
+
 #[cfg(test)]
 mod tests {
     use super::{ElementKind, FemModel};
-    use crate::shape::spec::ShapeSpec;
 
     /// The hex27x2 cut blocks of a curved object share their orbit's integration (the 16-voxel
     /// bowl's mirrors and quarter turn make orbits of up to 8); the independent truth is
@@ -599,10 +614,7 @@ mod tests {
     #[test]
     fn hex27x2_blocks_that_share_an_orbit_assemble_as_integrated_alone() {
         for spec in ["bowl:d=16,wall=2", "sphere:d=16"] {
-            let ShapeSpec::Primitive { shape, .. } = spec.parse().expect("spec") else {
-                panic!("a primitive")
-            };
-            let grid = shape.rasterize(1.0, 1.0).expect("grid");
+            let grid = super::test_grid(spec);
             let kind = ElementKind::Hex27Blocks;
             let shared = FemModel::assemble_with(&grid, kind, 0.3, None, true).expect("model");
             let alone = FemModel::assemble_with(&grid, kind, 0.3, None, false).expect("model");

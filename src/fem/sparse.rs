@@ -232,13 +232,8 @@ mod tests {
     /// permuted place, with the same value (the same arithmetic, so equal to the bit).
     #[test]
     fn the_permuted_triangles_are_those_of_the_permuted_matrix() {
-        use crate::fem::{ElementKind, FemModel};
-        use crate::shape::spec::ShapeSpec;
-        let ShapeSpec::Primitive { shape, .. } = "box:x=3,y=2,z=2".parse().expect("spec") else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).expect("model");
+        use crate::fem::ElementKind;
+        let model = crate::fem::test_model("box:x=3,y=2,z=2", ElementKind::Hex8Incompatible, 0.3);
         let (nodes, shift) = (model.nodes(), -0.25);
         let n = 3 * nodes;
         // Row `a` of the block matrix at (3a + c, 3b + d); `None` off the pattern.

@@ -385,8 +385,7 @@ impl RitzCheck<'_> {
 #[cfg(test)]
 mod tests {
     use crate::eigen::{lanczos, EigenOptions, ModeCount, Operators};
-    use crate::fem::{ElementKind, FemModel};
-    use crate::shape::spec::ShapeSpec;
+    use crate::fem::{test_model, ElementKind};
 
     /// Below this, an explicit residual is rounding: `K x - lambda M x` sums ~80 products per
     /// row of entries up to `||K||`, so it cannot resolve less than ~1e-13 relative (measured
@@ -404,13 +403,7 @@ mod tests {
     #[test]
     fn reported_residuals_match_explicit_ones() {
         for (spec, modes, block_size) in [("bowl:d=10,wall=2", 30, 8), ("bar:l=16,w=3,h=3", 4, 2)] {
-            let spec: ShapeSpec = spec.parse().expect("spec");
-            let ShapeSpec::Primitive { shape, .. } = spec else {
-                panic!("a primitive")
-            };
-            let grid = shape.rasterize(1.0, 1.0).expect("grid");
-            let model =
-                FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.24).expect("model");
+            let model = test_model(spec, ElementKind::Hex8Incompatible, 0.24);
             let options = EigenOptions {
                 count: ModeCount::First(modes),
                 block_size,

@@ -264,8 +264,7 @@ mod tests {
     use crate::eigen::factor::ShiftedCholesky;
     use crate::eigen::lanczos::{self, SHIFT_RELATIVE};
     use crate::eigen::{EigenOptions, ModeCount, Operators, Stop};
-    use crate::fem::{ElementKind, FemModel};
-    use crate::shape::spec::ShapeSpec;
+    use crate::fem::{test_model, ElementKind};
     use faer::Par;
 
     /// A bound midway across the first clear gap from mode `from` on (not inside a degenerate
@@ -287,11 +286,7 @@ mod tests {
     /// second request must cost less than the first solve's basis again: it goes on from it.
     #[test]
     fn a_resumed_iteration_answers_a_higher_bound() {
-        let ShapeSpec::Primitive { shape, .. } = "bowl:d=10,wall=2".parse().expect("spec") else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.24).expect("model");
+        let model = test_model("bowl:d=10,wall=2", ElementKind::Hex8Incompatible, 0.24);
         let ops = Operators::new(&model);
         let options = |count| EigenOptions {
             count,

@@ -251,8 +251,7 @@ fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::{ElementKind, FemModel};
-    use crate::shape::spec::ShapeSpec;
+    use crate::fem::{test_model, ElementKind};
 
     /// CholQR2's identities on both of its paths (two columns: in-place scaling and dot
     /// products; four: faer's products): `Q^T M Q = I`, `M Q` is the product of `M` with the
@@ -262,11 +261,7 @@ mod tests {
     /// column left unscaled, and a scaling off by 1e-9 already fails it (checked).
     #[test]
     fn chol_qr_is_an_m_orthonormal_factorisation_on_both_paths() {
-        let ShapeSpec::Primitive { shape, .. } = "bar:l=16,w=4,h=3".parse().expect("spec") else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).expect("model");
+        let model = test_model("bar:l=16,w=4,h=3", ElementKind::Hex8Incompatible, 0.3);
         let ops = Operators::new(&model);
         let n = ops.dofs();
         let bound = 100.0 * f64::EPSILON * (n as f64).sqrt();
