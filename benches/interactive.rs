@@ -248,7 +248,7 @@ fn max_relative_difference(a: &ModeBasis, b: &ModeBasis) -> f64 {
 fn export_for_scipy(dir: &std::path::Path) {
     /// Problems under this many DOFs are timed as the best of three runs, on both sides.
     const REPEATED_BELOW_DOFS: usize = 10_000;
-    use modalforge::fem::sparse::{mass_as_blocks, permuted_shifted_csc};
+    use modalforge::fem::sparse::{mass_as_blocks, permuted_shifted_csc, BlockMass};
     use std::io::Write;
     std::fs::create_dir_all(dir).expect("output folder");
     let mut csv = std::fs::File::create(dir.join("ours.csv")).expect("ours.csv");
@@ -271,7 +271,7 @@ fn export_for_scipy(dir: &std::path::Path) {
             let upper = permuted_shifted_csc(
                 &model.pattern,
                 a,
-                &model.m,
+                BlockMass::Scalar(&model.m),
                 0.0,
                 &in_order,
                 faer::Side::Upper,

@@ -8,8 +8,8 @@ mod rows;
 use super::EigenError;
 use crate::buffer;
 use crate::fem::memo::Memo;
-use crate::fem::sparse::BlockPattern;
 use crate::fem::sparse::RowBlock;
+use crate::fem::sparse::{BlockMass, BlockPattern};
 use crate::fem::{ordering, sparse, FemModel};
 use faer::dyn_stack::MemStack;
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
@@ -80,7 +80,17 @@ impl ShiftedCholesky {
     pub fn new(model: &FemModel, shift: f64, par: Par) -> Result<Self, EigenError> {
         let nodes = ordering::fill_reducing_for(model);
         let kept = (model.pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT);
-        Self::factor(&model.pattern, &model.k, &model.m, shift, &nodes, par, kept)
+        let mass = BlockMass::Scalar(&model.m);
+        Self::factor(
+            &model.pattern,
+            &model.k,
+            mass,
+            &[],
+            shift,
+            &nodes,
+            par,
+            kept,
+        )
     }
 
     /// Factors `K - shift M` given as node blocks, eliminating nodes in the order `nodes`
@@ -93,31 +103,46 @@ impl ShiftedCholesky {
         nodes: &[usize],
         par: Par,
     ) -> Result<Self, EigenError> {
-        Self::factor(pattern, k, m, shift, nodes, par, None)
+        Self::factor(
+            pattern,
+            k,
+            BlockMass::Scalar(m),
+            &[],
+            shift,
+            nodes,
+            par,
+            None,
+        )
     }
 
-    /// Factors one symmetry class's `K - shift M`, given already shifted as `shifted` (its
-    /// mass differs by component, [`super::symmetric`]), eliminating nodes in the order
-    /// `nodes`. Every class of a model has the same pattern, and the halves of the classes
-    /// one swap splits another, so all but the first of each reuse its symbolic
-    /// factorisation (two patterns are kept: the classes' and one swap's halves, or a
-    /// sphere's halves split by two different swaps).
+    /// Factors one symmetry class's `K - shift M` (its mass a diagonal a block, `m`, and the
+    /// entries off the blocks' diagonals, `extra`, as `(row DOF, column DOF, value)` in both
+    /// triangles: [`super::symmetric`]), eliminating nodes in the order `nodes`. Every class
+    /// of a model has the same pattern, and the halves of the classes one swap splits
+    /// another, so all but the first of each reuse its symbolic factorisation (two patterns
+    /// are kept: the classes' and one swap's halves, or a sphere's halves split by two
+    /// different swaps).
     pub fn for_class(
         pattern: &BlockPattern,
-        shifted: &[[f64; 9]],
+        k: &[[f64; 9]],
+        m: &[[f64; 3]],
+        extra: &[(u32, u32, f64)],
+        shift: f64,
         nodes: &[usize],
     ) -> Result<Self, EigenError> {
-        let zero = vec![0.0; shifted.len()];
         let kept = (pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT_CLASSES);
-        Self::factor(pattern, shifted, &zero, 0.0, nodes, Par::Seq, kept)
+        let mass = BlockMass::Diagonal(m);
+        Self::factor(pattern, k, mass, extra, shift, nodes, Par::Seq, kept)
     }
 
     /// [`ShiftedCholesky::from_blocks`], the symbolic factorisation taken from (and kept in)
     /// `kept` where given.
+    #[allow(clippy::too_many_arguments)]
     fn factor(
         pattern: &BlockPattern,
         k: &[[f64; 9]],
-        m: &[f64],
+        mass: BlockMass<'_>,
+        extra: &[(u32, u32, f64)],
         shift: f64,
         nodes: &[usize],
         par: Par,
@@ -136,10 +161,11 @@ impl ShiftedCholesky {
         for (k, &d) in fwd.iter().enumerate() {
             inv[d] = k;
         }
-        let a = sparse::permuted_shifted_csc(pattern, k, m, shift, nodes, Side::Lower);
+        let mut a = sparse::permuted_shifted_csc(pattern, k, mass, shift, nodes, Side::Lower);
+        subtract_extra(&mut a, extra, shift, &inv);
         let analyse = || {
             // The symbolic analysis reads the upper triangle.
-            let upper = sparse::permuted_shifted_csc(pattern, k, m, shift, nodes, Side::Upper);
+            let upper = sparse::permuted_shifted_csc(pattern, k, mass, shift, nodes, Side::Upper);
             let symbolic =
                 ordering::supernodal_symbolic(upper.symbolic(), SymmetricOrdering::Identity)
                     .map_err(|e| fail(&e));
@@ -269,6 +295,32 @@ impl ShiftedCholesky {
     }
 }
 
+/// Subtracts `shift` times the mass entries `extra` (`(row DOF, column DOF, value)`, both
+/// triangles, none on the diagonal) from the permuted lower triangle `a`, whose DOF `d` sits
+/// at `inv[d]`: a symmetry class's mass entries off its blocks' diagonals, a few next to a
+/// swap's diagonal plane, which [`sparse::permuted_shifted_csc`] leaves out. Each lies in
+/// `K`'s pattern, so in `a`'s.
+fn subtract_extra(
+    a: &mut faer::sparse::SparseColMat<usize, f64>,
+    extra: &[(u32, u32, f64)],
+    shift: f64,
+    inv: &[usize],
+) {
+    let (symbolic, values) = a.parts_mut();
+    for &(i, j, v) in extra {
+        let (row, col) = (inv[i as usize], inv[j as usize]);
+        if row < col {
+            continue;
+        }
+        let range = symbolic.col_range(col);
+        let at = symbolic.row_idx()[range.clone()]
+            .iter()
+            .position(|&r| r == row)
+            .expect("K's pattern holds M's");
+        values[range.start + at] -= shift * v;
+    }
+}
+
 /// Hands a matrix's row indices and values back to the process's kept buffers.
 fn recycle_csc(a: faer::sparse::SparseColMat<usize, f64>) {
     let (pattern, values) = a.into_parts();
@@ -380,8 +432,17 @@ mod tests {
         let model = bowl();
         let nodes = ordering::nested_dissection(&model);
         let factor = |m: &FemModel, nodes: &[usize], shift: f64, kept| {
-            ShiftedCholesky::factor(&m.pattern, &m.k, &m.m, shift, nodes, Par::Seq, kept)
-                .expect("factor")
+            ShiftedCholesky::factor(
+                &m.pattern,
+                &m.k,
+                BlockMass::Scalar(&m.m),
+                &[],
+                shift,
+                nodes,
+                Par::Seq,
+                kept,
+            )
+            .expect("factor")
         };
         let first = factor(&model, &nodes, -1e-3, Some(&memo));
         let second = factor(&model, &nodes, -2e-3, Some(&memo));

@@ -44,7 +44,7 @@ mod split;
 
 pub use mirrors::{ClassProblem, Mirrors, SYMMETRY_TOLERANCE};
 
-use mirrors::Lifting;
+use mirrors::{Lifting, ReducedPattern};
 use split::Split;
 
 use super::factor::ShiftedCholesky;
@@ -153,6 +153,9 @@ fn solve_classes(
     // Elimination orders (whichever of dissection and minimum degree fills less): the
     // classes' on the orbit representatives, a half's on its own (one per swap that splits).
     let mut orders: Vec<Option<Vec<usize>>> = vec![None; 1 + mirrors.swaps().len()];
+    // And the halves' pattern, one per swap that splits.
+    let mut half_patterns: Vec<Option<ReducedPattern>> =
+        (0..mirrors.swaps().len()).map(|_| None).collect();
     let (mut iterate_ms, mut iterations) = (0.0, 0);
     let mut solved: Vec<ClassAnswer> = Vec::with_capacity(parts.len());
     let mut problems = Vec::with_capacity(parts.len());
@@ -168,7 +171,8 @@ fn solve_classes(
                     class_of_halves = Some(mirrors.reduce(model, chi));
                 }
                 let class = class_of_halves.as_ref().expect("reduced above");
-                (half.reduce(class), 1 + swap)
+                let plan = half_patterns[*swap].get_or_insert_with(|| half.pattern(&class.pattern));
+                (half.reduce(class, plan), 1 + swap)
             }
         };
         // Every class has the same pattern, and so have the halves of one swap: one order each.
@@ -179,9 +183,14 @@ fn solve_classes(
                 ordering::fill_reducing(&class.pattern, &at, p)
             }
         });
-        let shifted = class.shifted(shift);
-        let mut llt = ShiftedCholesky::for_class(&class.pattern, &shifted, nodes)?;
-        drop(shifted);
+        let mut llt = ShiftedCholesky::for_class(
+            &class.pattern,
+            &class.k,
+            &class.m,
+            &class.mass_extra,
+            shift,
+            nodes,
+        )?;
         stop.check()?;
         let count = match (kth_lowest(&solved, options.count), estimate) {
             (Some(bound), _) => ModeCount::Below(bound * (1.0 + BOUND_MARGIN)),

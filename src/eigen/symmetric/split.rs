@@ -25,7 +25,7 @@
 //! another (next to the diagonal plane), whose few entries couple a swapped component with
 //! the other ([`ClassProblem::mass_extra`]).
 
-use super::mirrors::{ClassProblem, Lifting, Mirrors, ReducedRow};
+use super::mirrors::{ClassProblem, Lifting, Mirrors, ReducedPattern};
 use crate::fem::sparse::BlockPattern;
 
 /// One of the two halves of a class that an axis swap maps onto itself.
@@ -128,98 +128,93 @@ impl Split {
         &self.reps
     }
 
-    /// The subclass's `B^T K B` and `B^T M B` from its class's (see the module docs).
-    pub(super) fn reduce(&self, class: &ClassProblem) -> ClassProblem {
+    /// The pattern of this half, which it shares with the other half and with every class
+    /// the same swap splits (their halves pair the same orbits), given the classes'.
+    pub(super) fn pattern(&self, class: &BlockPattern) -> ReducedPattern {
+        let reps: Vec<usize> = self.reps.iter().map(|&o| o as usize).collect();
+        ReducedPattern::new(class, &reps, reps.len(), |o| self.node_of[o])
+    }
+
+    /// The subclass's `B^T K B` and `B^T M B` from its class's (see the module docs), on its
+    /// pattern `plan` ([`Split::pattern`]).
+    pub(super) fn reduce(&self, class: &ClassProblem, plan: &ReducedPattern) -> ClassProblem {
         let nodes = self.reps.len();
         let p = &class.pattern;
-        let mut row_ptr = Vec::with_capacity(nodes + 1);
-        row_ptr.push(0);
-        // The representatives' rows bound the half's rows (reserved, as in `Mirrors::reduce`).
-        let bound: usize = self
-            .reps
-            .iter()
-            .map(|&r| p.row_ptr[r as usize + 1] - p.row_ptr[r as usize])
-            .sum();
-        let (mut col, mut k) = (
-            Vec::with_capacity(bound),
-            Vec::<[f64; 9]>::with_capacity(bound),
-        );
-        // The mass in full blocks while it is summed; split into diagonals and the few
-        // off-diagonal entries below.
-        let mut m = Vec::<[f64; 9]>::with_capacity(bound);
-        let mut row = ReducedRow::new(nodes);
+        let blocks = plan.pattern.col.len();
+        let (mut k, mut m) = (vec![[0.0; 9]; blocks], vec![[0.0; 3]; blocks]);
+        // The mass's entries off the blocks' diagonals, as they are summed: `(row DOF,
+        // column DOF, value)`; the same entry's terms are added up below.
+        let mut off_diagonal: Vec<(u32, u32, f64)> = Vec::new();
+        let mut target = plan.target.iter();
         for (r, &rep) in self.reps.iter().enumerate() {
             let rep = rep as usize;
             // By the swap's invariance, the representative's row alone gives the half's
             // row: a pair's basis vector `(e_i + tau eps e_j) / sqrt 2` has `e_j^T A v =
             // tau eps e_i^T A v` for any `v` of the half, so `u^T A v = sqrt 2 e_i^T A v`
             // (as the classes are made from the orbit representatives' rows).
-            let blocks = p.row_ptr[rep]..p.row_ptr[rep + 1];
-            let columns = p.col[blocks.clone()].iter();
-            row.open(columns.map(|&q| self.node_of[q as usize]), &mut col);
-            k.resize(col.len(), [0.0; 9]);
-            m.resize(col.len(), [0.0; 9]);
-            for blk in blocks {
-                let q = p.col[blk] as usize;
-                let at = row.at(self.node_of[q] as usize);
-                let columns: [(u32, f64); 3] = std::array::from_fn(|d| self.member[3 * q + d]);
-                for c in 0..3 {
+            // This row's components in the half, as (slot, weight): not in this half, or the
+            // second member of an orbit's own pair (the swapped component of an orbit the
+            // swap fixes), which the first stands for, are left out; a pair's first member
+            // (1 / sqrt 2) weighs sqrt 2, a DOF alone 1.
+            let rows: Vec<(usize, usize, f64)> = (0..3)
+                .filter_map(|c| {
                     let (u, cu) = self.member[3 * rep + c];
-                    // Not in this half, or the second member of an orbit's own pair (the
-                    // swapped component of an orbit the swap fixes), which the first stands
-                    // for.
                     let su = u as usize % 3;
-                    if cu == 0.0 || su != c {
-                        continue;
-                    }
-                    // sqrt 2 for a pair's first member (1 / sqrt 2), 1 for a DOF alone.
                     let weight = if cu == 1.0 { 1.0 } else { 2.0 * cu };
+                    (cu != 0.0 && su == c).then_some((c, su, weight))
+                })
+                .collect();
+            for blk in p.row_ptr[rep]..p.row_ptr[rep + 1] {
+                let q = p.col[blk] as usize;
+                let at = *target.next().expect("a target per block") as usize;
+                let columns = &self.member[3 * q..3 * q + 3];
+                for &(c, su, weight) in &rows {
                     for (d, &(v, cv)) in columns.iter().enumerate() {
                         if cv == 0.0 {
                             continue;
                         }
-                        let e = 3 * su + v as usize % 3;
-                        k[at][e] += weight * cv * class.k[blk][3 * c + d];
+                        let sv = v as usize % 3;
+                        k[at][3 * su + sv] += weight * cv * class.k[blk][3 * c + d];
                         if c == d {
-                            m[at][e] += weight * cv * class.m[blk][c];
+                            let term = weight * cv * class.m[blk][c];
+                            if su == sv {
+                                m[at][su] += term;
+                            } else {
+                                let s = plan.pattern.col[at];
+                                off_diagonal.push(((3 * r + su) as u32, 3 * s + sv as u32, term));
+                            }
                         }
                     }
                 }
             }
             // A DOF outside this half: a decoupled massless row with the class's stiffness
             // there (an infinite eigenvalue, as for the classes' absent DOFs).
-            let own = p.find(rep, rep as u32).expect("diagonal block");
-            let diag = row.at(r);
+            let (diag, own) = plan.diagonal[r];
             for c in 0..3 {
                 if !self.has(r, c) {
-                    k[diag][4 * c] = class.k[own][4 * c];
-                }
-            }
-            row.close();
-            row_ptr.push(col.len());
-        }
-        let pattern = BlockPattern { row_ptr, col };
-        let mut mass_extra = Vec::new();
-        for r in 0..nodes {
-            let row = pattern.row_ptr[r]..pattern.row_ptr[r + 1];
-            for (&s, block) in pattern.col[row.clone()].iter().zip(&m[row]) {
-                let s = s as usize;
-                for (e, &v) in block.iter().enumerate() {
-                    let (c, d) = (e / 3, e % 3);
-                    if c != d && v != 0.0 {
-                        mass_extra.push(((3 * r + c) as u32, (3 * s + d) as u32, v));
-                    }
+                    k[diag as usize][4 * c] = class.k[own as usize][4 * c];
                 }
             }
         }
+        // In the order of the pattern (row node, column node, then components), each entry's
+        // terms summed in the order they came.
+        off_diagonal.sort_by_key(|&(i, j, _)| (i / 3, j / 3, i % 3, j % 3));
+        let mut mass_extra: Vec<(u32, u32, f64)> = Vec::with_capacity(off_diagonal.len());
+        for (i, j, v) in off_diagonal {
+            match mass_extra.last_mut() {
+                Some(last) if (last.0, last.1) == (i, j) => last.2 += v,
+                _ => mass_extra.push((i, j, v)),
+            }
+        }
+        mass_extra.retain(|e| e.2 != 0.0);
         let absent = (0..3 * nodes)
             .filter(|&i| !self.has(i / 3, i % 3))
             .collect();
         ClassProblem {
             chi: class.chi,
-            pattern,
+            pattern: plan.pattern.clone(),
             k,
-            m: m.iter().map(|b| [b[0], b[4], b[8]]).collect(),
+            m,
             mass_extra,
             absent,
         }
@@ -251,6 +246,38 @@ mod tests {
     use crate::eigen::{Operators, Which};
     use crate::fem::{ElementKind, FemModel};
     use crate::shape::primitives::Primitive;
+
+    /// The half's factor ([`ShiftedCholesky::for_class`]) solves `(K - shift M) x = b` with
+    /// the mass's entries off the blocks' diagonals included: the residual against the half's
+    /// own products is at rounding level. The shift, `-scale`, makes `K - shift M` well
+    /// conditioned (its eigenvalues from `scale` up), so 1e-10 of `||b||` bounds rounding;
+    /// leaving out the extra entries fails it (a residual of 0.14 of `||b||`).
+    fn factor_solves_the_shifted_half(sub: &ClassProblem, ops: &Operators, scale: f64) {
+        use crate::eigen::factor::ShiftedCholesky;
+        use crate::fem::sparse::RowBlock;
+        let n = ops.dofs();
+        let shift = -scale;
+        let nodes: Vec<usize> = (0..sub.pattern.nodes()).rev().collect();
+        let (k, m, extra) = (&sub.k, &sub.m, &sub.mass_extra);
+        let mut llt = ShiftedCholesky::for_class(&sub.pattern, k, m, extra, shift, &nodes)
+            .expect("the shifted half is positive definite");
+        let b = ops.random_block(1, 11);
+        let mut x = b.clone();
+        llt.solve_in_place(x.as_mut());
+        let x = x.col(0).try_as_col_major().unwrap().as_slice();
+        let b = b.col(0).try_as_col_major().unwrap().as_slice();
+        let (mut kx, mut mx) = (vec![0.0; n], vec![0.0; n]);
+        ops.spmm(Which::K, x, &mut kx, RowBlock::dense(1));
+        ops.spmm(Which::M, x, &mut mx, RowBlock::dense(1));
+        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|e| e * e).sum::<f64>().sqrt();
+        let residual = norm(&mut (0..n).map(|i| kx[i] - shift * mx[i] - b[i]));
+        let b_norm = norm(&mut b.iter().copied());
+        assert!(
+            residual <= 1e-10 * b_norm,
+            "chi {}: ||(K - shift M) x - b|| = {residual:e} of ||b|| = {b_norm:e}",
+            sub.chi
+        );
+    }
 
     /// Each half's `K` and `M` are the class's in the half's basis (`B^T A B x = A_half x` for
     /// random `x`, the mass's off-diagonal entries included), the two halves together keep
@@ -284,10 +311,11 @@ mod tests {
             let mut extra = 0;
             for tau in [1.0, -1.0] {
                 let half = Split::new(&mirrors, chi, swap, tau, &coords);
-                let sub = half.reduce(&class);
+                let sub = half.reduce(&class, &half.pattern(&class.pattern));
                 let ops = sub.operators(&whole);
                 kept += ops.dofs() - sub.absent.len();
                 extra += sub.mass_extra.len();
+                factor_solves_the_shifted_half(&sub, &ops, whole.scale);
                 let x = ops.random_block(1, 7);
                 let x = x.col(0).try_as_col_major().unwrap().as_slice();
                 // The class vector of x: x_class[i] = c_i x[u_i].
