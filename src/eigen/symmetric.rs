@@ -39,12 +39,15 @@
 //! took 14-23). The residuals are the whole model's (the classes' operators carry its norms,
 //! and `||B r|| = ||r||`).
 
+mod check;
 mod mirrors;
+mod reduced;
 mod split;
 
 pub use mirrors::{ClassProblem, Mirrors, SYMMETRY_TOLERANCE};
 
-use mirrors::{Lifting, ReducedPattern};
+use mirrors::Lifting;
+use reduced::ReducedPattern;
 use split::Split;
 
 use super::factor::ShiftedCholesky;

@@ -1,6 +1,8 @@
 //! The mirrors and axis swaps of a model, its node orbits under them, and one symmetry class's
 //! reduced `K` and `M` and lifted vectors (see [`super`] for the theory and the solve).
 
+use super::check::{maps_matrices, Components};
+use super::reduced::ReducedPattern;
 use crate::eigen::Operators;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::FemModel;
@@ -30,55 +32,6 @@ pub struct Mirrors {
     fixed: Vec<u8>,
     /// The classes' common pattern, made by the first reduction.
     class_pattern: std::sync::OnceLock<ReducedPattern>,
-}
-
-/// The pattern of a reduction (a model's onto its classes', a class's onto its halves') and
-/// where each block of the representatives' rows is summed. Every class of a model has the
-/// same pattern over its orbits (the classes' DOFs differ, not their blocks), and so have
-/// the halves of the classes one swap splits: it is worked out by the first reduction and
-/// read by the others'.
-pub(super) struct ReducedPattern {
-    pub(super) pattern: BlockPattern,
-    /// The reduced block each block of the representatives' rows is summed into, row by row.
-    pub(super) target: Vec<u32>,
-    /// Each reduced node's diagonal block and its representative's in the pattern reduced.
-    pub(super) diagonal: Vec<(u32, u32)>,
-}
-
-impl ReducedPattern {
-    /// The reduction of `p`'s rows `reps` (reduced node `r` from row `reps[r]`) onto
-    /// `nodes` nodes, column `q` going to reduced node `node_of(q)` (so `node_of(reps[r]) =
-    /// r`).
-    pub(super) fn new(
-        p: &BlockPattern,
-        reps: &[usize],
-        nodes: usize,
-        node_of: impl Fn(usize) -> u32,
-    ) -> Self {
-        // The representatives' rows bound the reduced rows' lengths (nodes merge columns):
-        // reserved once, the growing rows are not copied by reallocation.
-        let bound: usize = reps.iter().map(|&r| p.row_ptr[r + 1] - p.row_ptr[r]).sum();
-        let mut row_ptr = Vec::with_capacity(nodes + 1);
-        row_ptr.push(0);
-        let (mut col, mut target) = (Vec::with_capacity(bound), Vec::with_capacity(bound));
-        let mut diagonal = Vec::with_capacity(nodes);
-        let mut row = ReducedRow::new(nodes);
-        for &rep in reps {
-            let blocks = p.row_ptr[rep]..p.row_ptr[rep + 1];
-            let columns = p.col[blocks.clone()].iter();
-            row.open(columns.map(|&q| node_of(q as usize)), &mut col);
-            target.extend(blocks.map(|blk| row.at(node_of(p.col[blk] as usize) as usize) as u32));
-            let own = p.find(rep, rep as u32).expect("diagonal block");
-            diagonal.push((row.at(node_of(rep) as usize) as u32, own as u32));
-            row.close();
-            row_ptr.push(col.len());
-        }
-        ReducedPattern {
-            pattern: BlockPattern { row_ptr, col },
-            target,
-            diagonal,
-        }
-    }
 }
 
 impl Mirrors {
@@ -498,55 +451,6 @@ impl ClassProblem {
     }
 }
 
-/// Where each column of the reduced row being built sits, for a reduction that sums the
-/// blocks of several original columns into one (orbits of nodes, pairs of orbits).
-pub(super) struct ReducedRow {
-    /// Block index of each reduced column in the open row; `u32::MAX` elsewhere.
-    slot: Vec<u32>,
-    /// The open row's reduced columns, sorted.
-    cols: Vec<u32>,
-}
-
-impl ReducedRow {
-    /// For reductions onto `columns` reduced columns.
-    pub(super) fn new(columns: usize) -> Self {
-        ReducedRow {
-            slot: vec![u32::MAX; columns],
-            cols: Vec::new(),
-        }
-    }
-
-    /// Opens the next row, whose blocks fall in the reduced columns `targets` (repeats
-    /// allowed): appends them, distinct and sorted, to the pattern's `col`.
-    pub(super) fn open(&mut self, targets: impl Iterator<Item = u32>, col: &mut Vec<u32>) {
-        self.cols.clear();
-        for t in targets {
-            if self.slot[t as usize] == u32::MAX {
-                self.slot[t as usize] = 0;
-                self.cols.push(t);
-            }
-        }
-        self.cols.sort_unstable();
-        let start = col.len();
-        for (i, &t) in self.cols.iter().enumerate() {
-            self.slot[t as usize] = (start + i) as u32;
-        }
-        col.extend_from_slice(&self.cols);
-    }
-
-    /// The block index of reduced column `t` in the open row.
-    pub(super) fn at(&self, t: usize) -> usize {
-        self.slot[t] as usize
-    }
-
-    /// Closes the open row.
-    pub(super) fn close(&mut self) {
-        for &t in &self.cols {
-            self.slot[t as usize] = u32::MAX;
-        }
-    }
-}
-
 /// Every subset of the bit mask `axes`, the empty one first.
 fn subsets(axes: u8) -> impl Iterator<Item = u8> {
     (0..8u8).filter(move |g| g & !axes == 0)
@@ -571,151 +475,4 @@ fn node_map(
             (node != u32::MAX).then_some(node)
         })
         .collect()
-}
-
-/// How a symmetry acts on a displacement's components: component `c` goes to `to[c]`, times
-/// `sign[c]`.
-#[derive(Clone, Copy)]
-struct Components {
-    to: [usize; 3],
-    sign: [f64; 3],
-}
-
-impl Components {
-    /// The mirror along `axis`: that component flips.
-    fn mirror(axis: usize) -> Self {
-        let mut sign = [1.0; 3];
-        sign[axis] = -1.0;
-        Components {
-            to: [0, 1, 2],
-            sign,
-        }
-    }
-
-    /// The swap of axes `a` and `b`.
-    fn swap(a: usize, b: usize) -> Self {
-        let mut to = [0, 1, 2];
-        to.swap(a, b);
-        Components { to, sign: [1.0; 3] }
-    }
-}
-
-/// Whether the symmetry (nodes by `map`, components by `comp`) maps every block of `K` and `M`
-/// onto its image: `K(map a, map b)[to c][to d] = sign c sign d K(a, b)[c][d]`. `at` is scratch
-/// of one entry per node, all `u32::MAX`, and is left so.
-fn maps_matrices(
-    model: &FemModel,
-    map: &[u32],
-    comp: Components,
-    (k_max, m_max): (f64, f64),
-    at: &mut [u32],
-) -> bool {
-    let p = &model.pattern;
-    // Entry `e = 3c + d` of a block goes to `to[e]`, times `sign[e]`.
-    let to: [usize; 9] = std::array::from_fn(|e| 3 * comp.to[e / 3] + comp.to[e % 3]);
-    let sign: [f64; 9] = std::array::from_fn(|e| comp.sign[e / 3] * comp.sign[e % 3]);
-    let (k_tol, m_tol) = (SYMMETRY_TOLERANCE * k_max, SYMMETRY_TOLERANCE * m_max);
-    // The symmetries are involutions, and `K` and `M` are symmetric (a block's transpose is
-    // stored at the transposed place), so a block, its image, its transpose and its image's
-    // transpose are all right when one of them is: the one with the largest row or column,
-    // which is a block of row `a` at or before the diagonal, where `map[a] <= a`. Only those
-    // are compared (about a quarter of the blocks: a half from each row of half the rows).
-    (0..p.nodes()).all(|a| {
-        if map[a] as usize > a {
-            return true;
-        }
-        let image_row = p.row_ptr[map[a] as usize]..p.row_ptr[map[a] as usize + 1];
-        let row = p.row_ptr[a]..p.row_ptr[a + 1];
-        if row.len() != image_row.len() {
-            return false;
-        }
-        for blk in image_row.clone() {
-            at[p.col[blk] as usize] = blk as u32;
-        }
-        let lower = row.start..row.start + p.col[row].partition_point(|&b| b as usize <= a);
-        // The image row's blocks by column, so each block's image is one lookup; they are
-        // visited in the order of row `a`'s mapped columns, which the hardware does not
-        // prefetch, so they are asked for first (the tin can's four passes over every row
-        // and its whole image: 12.4 -> 7.1 ms).
-        let image_of = |blk: usize| at[map[p.col[blk] as usize] as usize];
-        for blk in lower.clone() {
-            if let Some(block) = model.k.get(image_of(blk) as usize) {
-                prefetch(block);
-            }
-        }
-        let same = lower.into_iter().all(|blk| {
-            let image = image_of(blk);
-            if image == u32::MAX {
-                return false;
-            }
-            let (k, ki) = (&model.k[blk], &model.k[image as usize]);
-            // Branch-free over the block: one comparison per block, not per entry.
-            let worst = (0..9).fold(0.0f64, |w, e| w.max((ki[to[e]] - sign[e] * k[e]).abs()));
-            worst <= k_tol && (model.m[image as usize] - model.m[blk]).abs() <= m_tol
-        });
-        for blk in image_row {
-            at[p.col[blk] as usize] = u32::MAX;
-        }
-        same
-    })
-}
-
-/// Asks the cache for `block` ahead of its use.
-#[inline(always)]
-fn prefetch(block: &[f64; 9]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let start = block.as_ptr().cast::<i8>();
-        // SAFETY: a prefetch is a hint that never faults or changes memory; both addresses
-        // lie within the 72-byte block (its first byte and the first of the next cache line
-        // it may span).
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(start);
-            _mm_prefetch::<_MM_HINT_T0>(start.add(64));
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = block;
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::fem::ElementKind;
-
-    /// The check compares about a quarter of the blocks (`maps_matrices`), standing for the
-    /// rest by the symmetry of `K`. Independent truth: a box with three mirrors and the x-y
-    /// swap, every pair of transposed blocks changed in turn (one entry off the diagonal, and
-    /// its transpose, by 1e-8 of the largest entry: far above the 1e-11 tolerance, so no
-    /// mirror holds it exactly), and each time some mirror or swap must be refused. A check
-    /// that skipped any block's orbit would keep all of them for that block.
-    #[test]
-    fn a_change_in_any_block_breaks_a_symmetry() {
-        let model = crate::fem::test_model("box:x=4,y=4,z=3", ElementKind::Hex8Incompatible, 0.3);
-        let before = Mirrors::detect(&model).expect("mirrors");
-        assert_eq!((before.axes(), before.swaps()), (0b111, vec![(0, 1)]));
-        let k_max = model.k.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-        let p = &model.pattern;
-        let mut changed = model.clone();
-        for a in 0..p.nodes() {
-            for blk in p.row_ptr[a]..p.row_ptr[a + 1] {
-                let b = p.col[blk] as usize;
-                if b > a {
-                    continue;
-                }
-                let transposed = p.find(b, a as u32).expect("a symmetric pattern");
-                let delta = 1e-8 * k_max;
-                changed.k[blk][1] += delta;
-                changed.k[transposed][3] += delta;
-                let after = Mirrors::detect(&changed);
-                let kept = after
-                    .as_ref()
-                    .map_or((0, vec![]), |m| (m.axes(), m.swaps()));
-                assert_ne!(kept, (0b111, vec![(0, 1)]), "block ({a}, {b}) changed");
-                changed.k[blk] = model.k[blk];
-                changed.k[transposed] = model.k[transposed];
-            }
-        }
-    }
 }

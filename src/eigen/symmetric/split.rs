@@ -25,7 +25,8 @@
 //! another (next to the diagonal plane), whose few entries couple a swapped component with
 //! the other ([`ClassProblem::mass_extra`]).
 
-use super::mirrors::{ClassProblem, Lifting, Mirrors, ReducedPattern};
+use super::mirrors::{ClassProblem, Lifting, Mirrors};
+use super::reduced::ReducedPattern;
 use crate::fem::sparse::BlockPattern;
 
 /// One of the two halves of a class that an axis swap maps onto itself.
