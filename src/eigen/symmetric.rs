@@ -434,37 +434,34 @@ const SMALL_BLOCK_MAX_PAIRS: usize = 32;
 /// the convergence checks are scheduled for a class's modes and these, not for its room.
 const RIGID_EXPECTED: usize = 3;
 
-/// Where columns of the whole model's answer come from: a class's answer, lifted, and mapped
-/// onto an image class by the swaps `path` (none for the class itself).
+/// Where columns of the whole model's answer come from: a class's answer, lifted onto the
+/// whole model as that class's vectors or as their images in a class a swap maps it onto.
 struct Source<'a> {
     solution: &'a EigenSolution,
     lifting: &'a Lifting,
-    path: &'a [usize],
 }
 
 impl Source<'_> {
-    /// Writes class vector `x`, lifted and mapped, into the whole model's column `out`.
-    fn write(&self, mirrors: &Mirrors, x: ColRef<'_, f64>, out: ColMut<'_, f64>) {
+    /// Writes class vector `x`, lifted, into the whole model's column `out`.
+    fn write(&self, x: ColRef<'_, f64>, out: ColMut<'_, f64>) {
         let out = out
             .try_as_col_major_mut()
             .expect("the answer's columns are contiguous")
             .as_slice_mut();
         self.lifting.column(x, out);
-        mirrors.map_column(out, self.path);
     }
 }
 
 /// Lifts and maps each source's block of class vectors into consecutive columns of `out`, from
 /// column `at`.
 fn write_blocks<'a>(
-    mirrors: &Mirrors,
     out: &mut Mat<f64>,
     mut at: usize,
     blocks: impl Iterator<Item = (&'a Source<'a>, MatRef<'a, f64>)>,
 ) {
     for (source, x) in blocks {
         for j in 0..x.ncols() {
-            source.write(mirrors, x.col(j), out.col_mut(at + j));
+            source.write(x.col(j), out.col_mut(at + j));
         }
         at += x.ncols();
     }
@@ -480,32 +477,23 @@ fn combine(
     timings: SolveTimings,
     iterations: usize,
 ) -> EigenSolution {
-    let liftings: Vec<Lifting> = solved
-        .iter()
-        .map(|s| {
-            let lifting = Lifting::new(mirrors, s.chi);
-            match &s.split {
-                Some(half) => half.compose(lifting),
-                None => lifting,
-            }
-        })
-        .collect();
-    let mut sources = Vec::new();
-    for (s, lifting) in solved.iter().zip(&liftings) {
-        let solution = &s.solution;
+    // Each source's lifting: a solved class's, and its images' (the same, mapped by their
+    // swaps), so that a column is lifted straight to where it belongs.
+    let mut liftings: Vec<(&EigenSolution, Lifting)> = Vec::new();
+    for s in solved {
+        let lifting = Lifting::new(mirrors, s.chi);
+        let lifting = match &s.split {
+            Some(half) => half.compose(lifting),
+            None => lifting,
+        };
         for path in &s.images {
-            sources.push(Source {
-                solution,
-                lifting,
-                path,
-            });
+            liftings.push((&s.solution, lifting.mapped(mirrors, path)));
         }
-        sources.push(Source {
-            solution,
-            lifting,
-            path: &[],
-        });
+        liftings.push((&s.solution, lifting));
     }
+    let sources: Vec<Source> = (liftings.iter())
+        .map(|(solution, lifting)| Source { solution, lifting })
+        .collect();
     // (eigenvalue, source, column, residual)
     let mut pairs: Vec<(f64, usize, usize, f64)> = sources
         .iter()
@@ -524,7 +512,7 @@ fn combine(
     let write_pairs = |pairs: &[(f64, usize, usize, f64)], out: &mut Mat<f64>| {
         for (j, &(_, i, col, _)) in pairs.iter().enumerate() {
             let source = &sources[i];
-            source.write(mirrors, source.solution.vectors.col(col), out.col_mut(j));
+            source.write(source.solution.vectors.col(col), out.col_mut(j));
         }
     };
     let mut vectors = Mat::zeros(n, keep);
@@ -545,7 +533,7 @@ fn combine(
     write_pairs(extra, &mut guard_vectors);
     let own_guards = (sources.iter().zip(&from_guards))
         .map(|(l, &take)| (l, l.solution.guard_vectors.get(.., 0..take)));
-    write_blocks(mirrors, &mut guard_vectors, extra.len(), own_guards);
+    write_blocks(&mut guard_vectors, extra.len(), own_guards);
     let rigid_count = sources
         .iter()
         .map(|l| l.solution.rigid_vectors.ncols())
@@ -554,7 +542,7 @@ fn combine(
     let rigid = sources
         .iter()
         .map(|l| (l, l.solution.rigid_vectors.as_ref()));
-    write_blocks(mirrors, &mut rigid_vectors, 0, rigid);
+    write_blocks(&mut rigid_vectors, 0, rigid);
     EigenSolution {
         eigenvalues: pairs[..keep].iter().map(|p| p.0).collect(),
         vectors,

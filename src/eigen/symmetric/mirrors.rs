@@ -207,19 +207,6 @@ impl Mirrors {
         groups
     }
 
-    /// Maps a whole-model vector of class `group[0]` onto class `member` by its swaps `path`,
-    /// in place.
-    pub(super) fn map_column(&self, x: &mut [f64], path: &[usize]) {
-        if path.is_empty() {
-            return;
-        }
-        let mut image = vec![0.0; x.len()];
-        for &i in path {
-            self.swaps[i].apply(x, &mut image);
-            x.copy_from_slice(&image);
-        }
-    }
-
     /// Whether the DOF `c` of orbit `o` exists in class `chi`: every mirror that fixes the
     /// representative must map its basis vector to itself times `chi`.
     pub(super) fn present(&self, o: usize, c: usize, chi: u8) -> bool {
@@ -351,6 +338,25 @@ impl Lifting {
         )
     }
 
+    /// This lifting followed by the swaps `path`, in order: the lifting of the class that
+    /// `path` maps this one onto ([`Mirrors::groups`]), whose vectors are the images of this
+    /// class's (a swap permutes the whole model's DOFs: `y(map q)[to c] = x(q)[c]`).
+    pub(super) fn mapped(&self, mirrors: &Mirrors, path: &[usize]) -> Self {
+        let mut lifting = self.0.clone();
+        let mut image = vec![(0, 0.0); lifting.len()];
+        for &i in path {
+            let swap = &mirrors.swaps[i];
+            let to = Components::swap(swap.axes.0, swap.axes.1).to;
+            for (q, &at) in swap.map.iter().enumerate() {
+                for (c, &tc) in to.iter().enumerate() {
+                    image[3 * at as usize + tc] = lifting[3 * q + c];
+                }
+            }
+            std::mem::swap(&mut lifting, &mut image);
+        }
+        Lifting(lifting)
+    }
+
     /// This lifting followed by `map`, which takes each class DOF to the DOF and coefficient
     /// of a smaller problem's basis ([`super::split::Split`]).
     pub(super) fn then(self, map: impl Fn(usize) -> (usize, f64)) -> Self {
@@ -382,6 +388,10 @@ impl Lifting {
 
     /// The whole model's vector `out` of class vector `x`.
     pub(super) fn column(&self, x: faer::ColRef<'_, f64>, out: &mut [f64]) {
+        let x = x
+            .try_as_col_major()
+            .expect("a class vector's column is contiguous");
+        let x = x.as_slice();
         for (v, &(i, w)) in out.iter_mut().zip(&self.0) {
             *v = w * x[i];
         }
@@ -402,16 +412,6 @@ impl Swap {
         let (a, b) = self.axes;
         let (ba, bb) = ((chi >> a) & 1, (chi >> b) & 1);
         (chi & !(1 << a) & !(1 << b)) | (ba << b) | (bb << a)
-    }
-
-    /// The image `y` of a whole-model vector `x`: `y(map q)[to c] = x(q)[c]`.
-    fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let comp = Components::swap(self.axes.0, self.axes.1);
-        for (q, &image) in self.map.iter().enumerate() {
-            for c in 0..3 {
-                y[3 * image as usize + comp.to[c]] = x[3 * q + c];
-            }
-        }
     }
 }
 
