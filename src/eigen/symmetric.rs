@@ -13,7 +13,8 @@
 //!
 //! The mirrors are those of the model's node bounding box, checked numerically on every block
 //! of `K` and `M` (to [`SYMMETRY_TOLERANCE`] of the largest entry, since refined fills are
-//! symmetric only to rounding). For a mirror `g` along axis `a`, `(g u)(p) = R_g u(g p)` with
+//! symmetric only to rounding; a quarter of the blocks are compared, standing for the rest by
+//! the matrices' symmetry: [`check`]). For a mirror `g` along axis `a`, `(g u)(p) = R_g u(g p)` with
 //! `R_g` flipping component `a`. A node orbit `O` with representative `o` gives class `chi` one
 //! basis vector per component `c`, `b = |O|^-1/2 sum_{q in O} sigma_q(c) e_{q,c}` with
 //! `sigma_q(c) = chi(g_q) [R_{g_q}]_cc` (`g_q` maps `o` to `q`); it vanishes where a mirror
