@@ -14,8 +14,8 @@
 //! The mirrors are those of the model's node bounding box, checked numerically on every block
 //! of `K` and `M` (to [`SYMMETRY_TOLERANCE`] of the largest entry, since refined fills are
 //! symmetric only to rounding; a quarter of the blocks are compared, standing for the rest by
-//! the matrices' symmetry: [`check`]). For a mirror `g` along axis `a`, `(g u)(p) = R_g u(g p)` with
-//! `R_g` flipping component `a`. A node orbit `O` with representative `o` gives class `chi` one
+//! the matrices' symmetry: [`check`]). For a mirror `g` along axis `a`, `(g u)(p) = R_g
+//! u(g p)` with `R_g` flipping component `a`. A node orbit `O` with representative `o` gives class `chi` one
 //! basis vector per component `c`, `b = |O|^-1/2 sum_{q in O} sigma_q(c) e_{q,c}` with
 //! `sigma_q(c) = chi(g_q) [R_{g_q}]_cc` (`g_q` maps `o` to `q`); it vanishes where a mirror
 //! fixing `o` would have to flip it (a node on the plane `x = 0` has no `u_x` in the classes
@@ -453,8 +453,8 @@ impl Source<'_> {
     }
 }
 
-/// Lifts and maps each source's block of class vectors into consecutive columns of `out`, from
-/// column `at`.
+/// Lifts each source's block of class vectors into consecutive columns of `out`, from column
+/// `at`.
 fn write_blocks<'a>(
     out: &mut Mat<f64>,
     mut at: usize,

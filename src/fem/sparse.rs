@@ -194,6 +194,9 @@ pub fn permuted_shifted_csc(
     let mut col_ptr = Vec::with_capacity(3 * n + 1);
     let mut row_idx = crate::buffer::take(entries);
     let mut val = crate::buffer::take(entries);
+    // Empty (as `take` hands them back), so their spare capacity starts at element 0.
+    row_idx.clear();
+    val.clear();
     row_idx.reserve_exact(entries);
     val.reserve_exact(entries);
     col_ptr.push(0);
@@ -244,8 +247,9 @@ pub fn permuted_shifted_csc(
         }
     }
     assert_eq!(at, entries, "every entry of the triangle written");
-    // SAFETY: the loop above wrote the first `entries` elements of both spare capacities
-    // (reserved above), one per entry, and `at == entries` is asserted.
+    // SAFETY: both vectors are empty with room for `entries` elements (cleared and reserved
+    // above), and the loop wrote elements `0..at` of both spare capacities, one per entry,
+    // with `at == entries` asserted.
     unsafe {
         row_idx.set_len(entries);
         val.set_len(entries);

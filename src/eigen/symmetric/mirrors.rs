@@ -217,22 +217,13 @@ impl Mirrors {
 
     /// `sigma_q(c)`: the sign of node `q`'s component `c` in its orbit's class-`chi` vector.
     pub(super) fn sign(&self, q: usize, c: usize, chi: u8) -> f64 {
-        let g = self.from_rep[q];
-        let flips = (g & chi).count_ones() + u32::from(g & (1 << c) != 0);
-        if flips.is_multiple_of(2) {
-            1.0
-        } else {
-            -1.0
-        }
+        element_sign(self.from_rep[q], c, chi)
     }
 
     /// The classes' common pattern, made on the first call (see [`ReducedPattern`]).
     fn class_pattern(&self, model: &FemModel) -> &ReducedPattern {
-        self.class_pattern.get_or_init(|| {
-            ReducedPattern::new(&model.pattern, &self.reps, self.reps.len(), |q| {
-                self.orbit_of[q]
-            })
-        })
+        self.class_pattern
+            .get_or_init(|| ReducedPattern::new(&model.pattern, &self.reps, |q| self.orbit_of[q]))
     }
 
     /// `K` and `M` of class `chi` on the orbit representatives.
@@ -250,16 +241,8 @@ impl Mirrors {
         let has: Vec<[f64; 3]> = (0..orbits)
             .map(|o| std::array::from_fn(|c| f64::from(u8::from(self.present(o, c, chi)))))
             .collect();
-        let signs: [[f64; 3]; 8] = std::array::from_fn(|g| {
-            std::array::from_fn(|c| {
-                let flips = (g as u8 & chi).count_ones() + u32::from(g & (1 << c) != 0);
-                if flips.is_multiple_of(2) {
-                    1.0
-                } else {
-                    -1.0
-                }
-            })
-        });
+        let signs: [[f64; 3]; 8] =
+            std::array::from_fn(|g| std::array::from_fn(|c| element_sign(g as u8, c, chi)));
         let roots: [[f64; 4]; 4] = std::array::from_fn(|i| {
             std::array::from_fn(|j| (f64::from(1u8 << i) / f64::from(1u8 << j)).sqrt())
         });
@@ -448,6 +431,17 @@ impl ClassProblem {
             m_norm: whole.m_norm,
             scale: whole.scale,
         }
+    }
+}
+
+/// `chi(g) [R_g]_cc`: the sign a class-`chi` vector's component `c` takes at the image of its
+/// orbit's representative under `g` (a mask of mirrored axes; [`super`]'s `sigma_q(c)`).
+fn element_sign(g: u8, c: usize, chi: u8) -> f64 {
+    let flips = (g & chi).count_ones() + u32::from(g & (1 << c) != 0);
+    if flips.is_multiple_of(2) {
+        1.0
+    } else {
+        -1.0
     }
 }
 

@@ -14,24 +14,19 @@ use crate::fem::sparse::BlockPattern;
 /// same pattern over its orbits (the classes' DOFs differ, not their blocks), and so have
 /// the halves of the classes one swap splits: it is worked out by the first reduction and
 /// read by the others'.
-pub(in crate::eigen::symmetric) struct ReducedPattern {
-    pub(in crate::eigen::symmetric) pattern: BlockPattern,
+pub(super) struct ReducedPattern {
+    pub(super) pattern: BlockPattern,
     /// The reduced block each block of the representatives' rows is summed into, row by row.
-    pub(in crate::eigen::symmetric) target: Vec<u32>,
+    pub(super) target: Vec<u32>,
     /// Each reduced node's diagonal block and its representative's in the pattern reduced.
-    pub(in crate::eigen::symmetric) diagonal: Vec<(u32, u32)>,
+    pub(super) diagonal: Vec<(u32, u32)>,
 }
 
 impl ReducedPattern {
-    /// The reduction of `p`'s rows `reps` (reduced node `r` from row `reps[r]`) onto
-    /// `nodes` nodes, column `q` going to reduced node `node_of(q)` (so `node_of(reps[r]) =
-    /// r`).
-    pub(in crate::eigen::symmetric) fn new(
-        p: &BlockPattern,
-        reps: &[usize],
-        nodes: usize,
-        node_of: impl Fn(usize) -> u32,
-    ) -> Self {
+    /// The reduction of `p`'s rows `reps` (reduced node `r` from row `reps[r]`), column `q`
+    /// going to reduced node `node_of(q)` (so `node_of(reps[r]) = r`).
+    pub(super) fn new(p: &BlockPattern, reps: &[usize], node_of: impl Fn(usize) -> u32) -> Self {
+        let nodes = reps.len();
         // The representatives' rows bound the reduced rows' lengths (nodes merge columns):
         // reserved once, the growing rows are not copied by reallocation.
         let bound: usize = reps.iter().map(|&r| p.row_ptr[r + 1] - p.row_ptr[r]).sum();

@@ -133,7 +133,7 @@ impl Split {
     /// the same swap splits (their halves pair the same orbits), given the classes'.
     pub(super) fn pattern(&self, class: &BlockPattern) -> ReducedPattern {
         let reps: Vec<usize> = self.reps.iter().map(|&o| o as usize).collect();
-        ReducedPattern::new(class, &reps, reps.len(), |o| self.node_of[o])
+        ReducedPattern::new(class, &reps, |o| self.node_of[o])
     }
 
     /// The subclass's `B^T K B` and `B^T M B` from its class's (see the module docs), on its
