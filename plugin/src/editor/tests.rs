@@ -5,7 +5,9 @@
 use super::sculptor::{Sculptor, BOX_SIDE};
 use super::view3d::{self, Camera, NORMALS};
 use super::*;
+use crate::materials::MaterialChoice;
 use modalforge::shape::VoxelFill;
+use nice_plug::prelude::*;
 
 fn block(dims: [usize; 3]) -> Sculpt {
     let grid = modalforge::shape::VoxelGrid::from_fn(dims, 1.0, |_, _, _| true).unwrap();
