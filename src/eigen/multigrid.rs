@@ -28,12 +28,10 @@ use super::factor::ShiftedCholesky;
 use super::{EigenError, Operators};
 use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
-use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks, RowBlock};
+use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
 use faer::Par;
-use hierarchy::{
-    assemble, coarsen, galerkin, hex27_to_hex8, prolong_add, prolongation, restrict_add,
-};
+use hierarchy::{assemble, coarsen, galerkin, hex27_to_hex8, prolongation};
 
 /// Coarsening stops once a level has at most this many nodes; that level is factored.
 pub const COARSE_NODES: usize = 3000;
@@ -478,6 +476,34 @@ fn invert3(a: &[f64; 9]) -> [f64; 9] {
     ];
     let det = a[0] * c[0] + a[1] * c[3] + a[2] * c[6];
     c.map(|v| v / det)
+}
+
+/// `fine += P coarse` for dense blocks of width `b`.
+fn prolong_add<T: Scalar>(p: &Prolongation, coarse: &[T], fine: &mut [T], b: usize) {
+    for node in 0..p.row_ptr.len() - 1 {
+        let out = &mut fine[3 * node * b..3 * (node + 1) * b];
+        for k in p.row_ptr[node]..p.row_ptr[node + 1] {
+            let w = T::from_f64(p.weight[k]);
+            let src = &coarse[3 * p.coarse[k] as usize * b..3 * (p.coarse[k] as usize + 1) * b];
+            for (o, &s) in out.iter_mut().zip(src) {
+                *o += w * s;
+            }
+        }
+    }
+}
+
+/// `coarse += P^T fine` for dense blocks of width `b`.
+fn restrict_add<T: Scalar>(p: &Prolongation, fine: &[T], coarse: &mut [T], b: usize) {
+    for node in 0..p.row_ptr.len() - 1 {
+        let src = &fine[3 * node * b..3 * (node + 1) * b];
+        for k in p.row_ptr[node]..p.row_ptr[node + 1] {
+            let w = T::from_f64(p.weight[k]);
+            let c = p.coarse[k] as usize;
+            for (o, &s) in coarse[3 * c * b..3 * (c + 1) * b].iter_mut().zip(src) {
+                *o += w * s;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 
 use super::{CellMesh, Level, Prolongation};
 use crate::buffer::zeroed;
-use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks, Scalar};
+use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks};
 use crate::shape::{lattice_coords, lattice_index};
 use std::collections::HashMap;
 
@@ -213,32 +213,4 @@ pub(super) fn prolongation(fine_coords: &[[i64; 3]], coarse: &Level) -> Prolonga
         out.row_ptr.push(out.coarse.len());
     }
     out
-}
-
-/// `fine += P coarse` for dense blocks of width `b`.
-pub(super) fn prolong_add<T: Scalar>(p: &Prolongation, coarse: &[T], fine: &mut [T], b: usize) {
-    for node in 0..p.row_ptr.len() - 1 {
-        let out = &mut fine[3 * node * b..3 * (node + 1) * b];
-        for k in p.row_ptr[node]..p.row_ptr[node + 1] {
-            let w = T::from_f64(p.weight[k]);
-            let src = &coarse[3 * p.coarse[k] as usize * b..3 * (p.coarse[k] as usize + 1) * b];
-            for (o, &s) in out.iter_mut().zip(src) {
-                *o += w * s;
-            }
-        }
-    }
-}
-
-/// `coarse += P^T fine` for dense blocks of width `b`.
-pub(super) fn restrict_add<T: Scalar>(p: &Prolongation, fine: &[T], coarse: &mut [T], b: usize) {
-    for node in 0..p.row_ptr.len() - 1 {
-        let src = &fine[3 * node * b..3 * (node + 1) * b];
-        for k in p.row_ptr[node]..p.row_ptr[node + 1] {
-            let w = T::from_f64(p.weight[k]);
-            let c = p.coarse[k] as usize;
-            for (o, &s) in coarse[3 * c * b..3 * (c + 1) * b].iter_mut().zip(src) {
-                *o += w * s;
-            }
-        }
-    }
 }

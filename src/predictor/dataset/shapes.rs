@@ -2,8 +2,8 @@
 //! unions and differences of several, smooth blobs, thin shells, plates with holes and objects
 //! with handles, each from its own random stream ([`object`]).
 //!
-//! Where it sits: [`super::generate`] labels what [`object`] makes; the tests and the
-//! predictor's evaluation make the same objects from the same seeds.
+//! Where it sits: [`super::generate`] labels what [`object`] makes; tests (the dataset's,
+//! the metrics', `tests/predictor.rs`) make the same objects from the same seeds.
 
 use super::bands::INPUT_SIDE;
 use super::Family;
