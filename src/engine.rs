@@ -35,9 +35,10 @@ pub use answers::KeptAnswers;
 pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::{ObjectModes, SolvedObject};
 pub use solvers::{
-    coarse_grid, interactive_solvers, predicted_cold_ms, AnswerSwitch, Answers, CarriedRitzSolver,
-    CoarseFemSolver, IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR,
-    COARSE_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS,
+    coarse_expected_error, coarse_grid, grid_mirrors, interactive_solvers, mean_wall_voxels,
+    predicted_cold_ms, AnswerSwitch, Answers, CarriedRitzSolver, CoarseFemSolver,
+    IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR, COARSE_EXPECTED_ERROR,
+    COARSE_THIN_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS,
 };
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{

@@ -32,8 +32,8 @@ impl ModeSolver for Uninterrupted {
     fn applies(&self, r: &ObjectRequest) -> bool {
         self.0.applies(r)
     }
-    fn expected_error(&self) -> Option<f64> {
-        self.0.expected_error()
+    fn expected_error(&self, request: &ObjectRequest) -> Option<f64> {
+        self.0.expected_error(request)
     }
 }
 

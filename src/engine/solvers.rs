@@ -4,8 +4,9 @@
 //! each answer as it arrives. [`interactive_solvers`] builds the chain the plugin uses:
 //! 1. [`CoarseFemSolver`], the progressive first answer: when the exact solve is predicted to
 //!    take longer than [`PROGRESSIVE_BUDGET_MS`] and the edit cannot be warm-started, the
-//!    object resampled to half the resolution ([`coarse_grid`]) is solved first (about 8x
-//!    fewer DOFs) and played, with its expected error in the status;
+//!    object resampled to half the resolution with its fills kept ([`coarse_grid`]) is solved
+//!    first (4-8x fewer DOFs) and played, with its expected error in the status
+//!    ([`coarse_expected_error`]: larger for one-voxel walls);
 //! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
 //!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]);
@@ -23,26 +24,131 @@ use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::eigen::{ModeCount, Stop};
-use crate::fem::ElementCache;
+use crate::fem::{ElementCache, ElementKind};
 use crate::predictor::Predictor;
-use crate::shape::{ops, VoxelGrid};
+use crate::shape::fill::{fill_of, FULL, SUBCELLS, SUBCELLS_PER_AXIS};
+use crate::shape::{ops, VoxelFill, VoxelGrid};
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// An exact solve predicted to take longer than this (ms) gets a coarse answer first.
 pub const PROGRESSIVE_BUDGET_MS: f64 = 100.0;
 
-/// Predicted one-core time of a cold exact solve, ms per DOF per wanted pair (modes plus six
-/// rigid). Fitted to `cargo bench --bench interactive` (60 modes: 0.34-0.72e-3 on the presets
-/// and the default bowl, 1.1k-23k DOFs; 2.1e-3 on a solid 24^3 sphere, whose factor is
-/// denser); an estimate for scheduling, not a promise.
+/// Predicted one-core time of a cold exact solve of an object without mirrors, ms per DOF
+/// per wanted pair (modes plus six rigid): the default bowl solved whole (hex27x2, 60 modes,
+/// as a stroke off its planes leaves it) takes 0.72e-3 ([`predicted_cold_ms`] divides by
+/// [`MIRROR_SPEEDUP`] for mirrored ones); an estimate for scheduling, not a promise.
 const COLD_MS_PER_DOF_PAIR: f64 = 0.7e-3;
 
-/// Mean frequency error of the coarse answer's lowest 10 modes, for the status line, measured
-/// by `cargo bench --bench interactive` on the objects the coarse path accepts (solid and
-/// thick-walled ones; the presets' thin walls are refused): 1.8 % on a 24^3 sphere, 7.0 % on
-/// a 32-voxel bowl with a 4-voxel wall.
-pub const COARSE_EXPECTED_ERROR: f64 = 0.07;
+/// How much faster a cold solve is with 0, 1, 2 or 3 mirror planes (solved by symmetry
+/// classes, `eigen/symmetric.rs`). Measured side by side with whole solves (hex27x2, 60
+/// modes): two mirrors (and the bowls' axis swap) 2.8-3.4x (the bell, the default bowl),
+/// three 6.5x (a 16-voxel sphere); but 4 fits the cold times of the three-mirror presets and
+/// the 24^3 sphere (`cargo bench --bench interactive`, stop 59: within 0.8-1.3x of the
+/// estimate), whose classes are smaller and pay more overhead each. One mirror between.
+const MIRROR_SPEEDUP: [f64; 4] = [1.0, 1.7, 3.0, 4.0];
+
+/// Predicted cold solve time of `grid` (ms, one core) for `count` modes with `element`:
+/// DOFs estimated from the voxel count, the mirrors from the fills ([`grid_mirrors`]).
+/// Against `cargo bench --bench interactive` on the presets: the glass bowl, the bell, the
+/// vases and the 24^3 sphere (0.15-0.45 s) are predicted over 100 ms; the presets solved
+/// under 100 ms are predicted at 20-80 ms.
+pub fn predicted_cold_ms(grid: &VoxelGrid, element: ElementKind, count: ModeCount) -> f64 {
+    // Nodes of a voxel object: about the voxel count plus its surface layer.
+    let voxels = grid.count() as f64;
+    let dofs = 3.0 * (voxels + 2.0 * voxels.powf(2.0 / 3.0) + voxels / 2.0);
+    let pairs = match count {
+        ModeCount::First(k) => k as f64 + 6.0,
+        ModeCount::Below(_) => 66.0,
+    };
+    COLD_MS_PER_DOF_PAIR * dofs * pairs / MIRROR_SPEEDUP[grid_mirrors(grid, element)]
+}
+
+/// How many of the three axes `grid` is mirror-symmetric along, fill for fill (a partial
+/// voxel's sub-cells mirrored too), about the centre of its solid voxels' bounding box, with
+/// `element`'s blocks mapped onto blocks (hex27x2's start at the grid's origin, so the box's
+/// first and last voxel indices must add up to an odd number). The eigensolver finds its
+/// mirrors on the assembled matrices (`eigen/symmetric.rs`); this is the cheap look at the
+/// voxels that the time estimate needs before any assembly.
+pub fn grid_mirrors(grid: &VoxelGrid, element: ElementKind) -> usize {
+    let solid = grid.solid_voxels();
+    if solid.is_empty() {
+        return 0;
+    }
+    let lo: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).min().unwrap_or(0));
+    let hi: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).max().unwrap_or(0));
+    let block = element.voxels_per_element();
+    let n = SUBCELLS_PER_AXIS;
+    (0..3)
+        .filter(|&a| {
+            if block > 1 && (lo[a] + hi[a]) % block != block - 1 {
+                return false;
+            }
+            solid.iter().all(|v| {
+                let mut m = *v;
+                m[a] = lo[a] + hi[a] - v[a];
+                let at = |c: [usize; 3]| grid.fill_at(c[0] as isize, c[1] as isize, c[2] as isize);
+                match (at(*v), at(m)) {
+                    (VoxelFill::Partial(f), VoxelFill::Partial(g)) => (0..SUBCELLS).all(|i| {
+                        let mut s = [i % n, (i / n) % n, i / (n * n)];
+                        s[a] = n - 1 - s[a];
+                        f.0[i] == g.0[s[0] + n * (s[1] + n * s[2])]
+                    }),
+                    (f, g) => f == g,
+                }
+            })
+        })
+        .count()
+}
+
+/// Mean frequency error of the coarse answer's lowest 10 modes on objects whose walls are
+/// thicker than [`THIN_WALL_VOXELS`], for the status line ([`coarse_expected_error`]).
+/// Measured by `cargo bench --bench interactive` and a side-by-side harness (hex27x2, 60
+/// modes): a 24^3 sphere 0.0 %, a 32-voxel bowl with a 4-voxel wall 0.8 %, a 10x12x16 box
+/// 0.4 %, the default bowl and the bell (2-voxel walls, curved) 3.3 % and 3.7 %.
+pub const COARSE_EXPECTED_ERROR: f64 = 0.05;
+
+/// [`COARSE_EXPECTED_ERROR`] for walls at most [`THIN_WALL_VOXELS`] thick: the elements of the
+/// half-resolution grid are four wall thicknesses across, so bending comes out stiff. The
+/// same measurement: the glass bowl 10.5 %, the aluminium plate 8.2 %, the brass gong 8.1 %,
+/// the tin can 14.1 %, the glass vase 13.6 %, the ceramic cup 14.2 %, the plastic crate
+/// 13.3 %.
+pub const COARSE_THIN_EXPECTED_ERROR: f64 = 0.15;
+
+/// Mean wall thickness ([`mean_wall_voxels`]) at or under which [`coarse_expected_error`]
+/// says [`COARSE_THIN_EXPECTED_ERROR`]: the one-voxel walls of the presets measure 0.78-1.0,
+/// the two-voxel curved ones 1.2-1.3.
+pub const THIN_WALL_VOXELS: f64 = 1.1;
+
+/// The coarse answer's expected error for `grid` (see [`COARSE_EXPECTED_ERROR`]).
+pub fn coarse_expected_error(grid: &VoxelGrid) -> f64 {
+    if mean_wall_voxels(grid) <= THIN_WALL_VOXELS {
+        COARSE_THIN_EXPECTED_ERROR
+    } else {
+        COARSE_EXPECTED_ERROR
+    }
+}
+
+/// An object's mean wall thickness in voxels, `2 V / A`: twice its filled volume over its
+/// surface area, both counted on the voxel fills (the area as the fill's jumps between
+/// neighbouring voxels along each axis). A plate or a shell of thickness `t` gives about `t`.
+pub fn mean_wall_voxels(grid: &VoxelGrid) -> f64 {
+    let d = grid.dims().map(|v| v as isize);
+    let f = |x, y, z| grid.fraction(x, y, z);
+    let (mut volume, mut area) = (0.0, 0.0);
+    for z in -1..=d[2] {
+        for y in -1..=d[1] {
+            for x in -1..=d[0] {
+                let here = f(x, y, z);
+                volume += here;
+                area += (f(x + 1, y, z) - here).abs()
+                    + (f(x, y + 1, z) - here).abs()
+                    + (f(x, y, z + 1) - here).abs();
+            }
+        }
+    }
+    2.0 * volume / area.max(1.0)
+}
 
 /// Typical largest relative frequency error of the carried answer to a one-voxel stroke, for
 /// the status line: `cargo bench --bench interactive` measures 1e-5 to 1.3e-2 on the presets
@@ -63,71 +169,41 @@ fn elements(shared: &SharedElements) -> std::sync::MutexGuard<'_, ElementCache> 
     shared.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Predicted cold solve time of `grid` (ms, one core) for `count` modes.
-pub fn predicted_cold_ms(grid: &VoxelGrid, count: ModeCount) -> f64 {
-    // Nodes of a voxel object: about the voxel count plus its surface layer.
-    let voxels = grid.count() as f64;
-    let dofs = 3.0 * (voxels + 2.0 * voxels.powf(2.0 / 3.0) + voxels / 2.0);
-    let pairs = match count {
-        ModeCount::First(k) => k as f64 + 6.0,
-        ModeCount::Below(_) => 66.0,
-    };
-    COLD_MS_PER_DOF_PAIR * dofs * pairs
-}
-
-/// Agreement a coarse grid must reach with the fine one ([`coarse_grid`]): the voxels both
-/// fill over the voxels either fills, the coarse grid read at the fine resolution. A wall one
-/// voxel thick that comes back two thick scores 0.5 or less.
-const COARSE_MIN_AGREEMENT: f64 = 0.7;
-
-/// `grid` resampled to half the resolution (the voxel edge doubles, the extent stays), or
-/// `None` where halving would change the object too much to be a useful first answer: a
-/// coarse voxel is solid when at least `t` of its (up to 8) fine voxels' volume is filled
-/// (partial voxels count their fill; within half a voxel), with `t` chosen to agree best with
-/// the fine grid; the result must keep the object's face-connected
-/// component count and agree on `COARSE_MIN_AGREEMENT` (0.7) of the voxels (intersection over
-/// union). Walls one voxel thick do not survive halving (those objects wait for the exact
-/// answer, or the neural predictor).
+/// `grid` resampled to half the resolution (the voxel edge doubles, the extent stays), its
+/// fills kept: each coarse voxel's sub-cells ([`SUBCELLS_PER_AXIS`] a side) hold the mean of
+/// the `2^3` fine sub-cells they cover, summed in integers so that mirror-image voxels get
+/// the same bytes (and the coarse model keeps the object's mirrors). The geometry is the
+/// fine grid's at half the sub-cell resolution, so a wall one voxel thick stays one voxel
+/// thick (half of a coarse voxel), where thresholding whole voxels would make it two or
+/// nothing. `None` where the coarse grid would join parts the fine one keeps apart (its
+/// face-connected components, counted on the voxels, differ: the answer would have the wrong
+/// rigid-body modes) or is empty.
 pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
     let d = grid.dims();
     let cd = d.map(|v| v.div_ceil(2));
-    if cd.iter().any(|&v| v < 2) {
-        return None;
-    }
-    let cell = |[x, y, z]: [usize; 3]| x / 2 + cd[0] * (y / 2 + cd[1] * (z / 2));
-    // Filled volume of each coarse voxel, in fine voxels (partial voxels count their fill).
-    let mut fill = vec![0.0f64; cd.iter().product()];
-    for v in grid.solid_voxels() {
-        fill[cell(v)] += grid.fraction(v[0] as isize, v[1] as isize, v[2] as isize);
-    }
-    // Intersection over union of the fine grid's volume and the coarse grid with threshold t;
-    // a coarse voxel always covers 8 fine ones (past an odd edge of the grid, empty ones: a
-    // bar 3 voxels thick that comes back 4 thick disagrees).
-    let agreement = |t: u8| {
-        let (mut both, mut either) = (0.0, 0.0);
-        for &f in &fill {
-            if f >= t as f64 - 0.5 {
-                both += f;
-                either += 8.0;
-            } else {
-                either += f;
-            }
-        }
-        both / f64::max(either, 1.0)
-    };
-    let t = (1..=8u8)
-        .max_by(|&a, &b| agreement(a).total_cmp(&agreement(b)))
-        .expect("thresholds");
-    if agreement(t) < COARSE_MIN_AGREEMENT {
-        return None;
-    }
+    let n = SUBCELLS_PER_AXIS;
     let mut coarse = VoxelGrid::new(cd, 2.0 * grid.voxel_size_m()).ok()?;
-    for z in 0..cd[2] {
-        for y in 0..cd[1] {
-            for x in 0..cd[0] {
-                coarse.set(x, y, z, fill[x + cd[0] * (y + cd[1] * z)] >= t as f64 - 0.5);
+    for c in
+        (0..cd[2]).flat_map(|z| (0..cd[1]).flat_map(move |y| (0..cd[0]).map(move |x| [x, y, z])))
+    {
+        // Sums of the covered fine sub-cells' bytes (a full voxel's are FULL).
+        let mut sums = [0u32; SUBCELLS];
+        for o in 0..8 {
+            let off = [o & 1, (o >> 1) & 1, o >> 2];
+            let [x, y, z] = std::array::from_fn(|a| (2 * c[a] + off[a]) as isize);
+            let bytes = match grid.fill_at(x, y, z) {
+                VoxelFill::Empty => continue,
+                VoxelFill::Full => [FULL; SUBCELLS],
+                VoxelFill::Partial(f) => f.0,
+            };
+            for (i, &b) in bytes.iter().enumerate() {
+                let s = [i % n, (i / n) % n, i / (n * n)];
+                let [sx, sy, sz] = std::array::from_fn(|a| (off[a] * n + s[a]) / 2);
+                sums[sx + n * (sy + n * sz)] += u32::from(b);
             }
         }
+        let fill = fill_of(sums.map(|v| f64::from(v) / (8.0 * f64::from(FULL))));
+        coarse.set_fill(c[0], c[1], c[2], fill);
     }
     (coarse.count() > 0 && ops::components(&coarse).1 == ops::components(grid).1).then_some(coarse)
 }
@@ -245,12 +321,12 @@ impl ModeSolver for CoarseFemSolver {
                 return false;
             }
         }
-        predicted_cold_ms(&r.grid, r.options.count) > PROGRESSIVE_BUDGET_MS
+        predicted_cold_ms(&r.grid, r.element, r.options.count) > PROGRESSIVE_BUDGET_MS
             && coarse_grid(&r.grid).is_some()
     }
 
-    fn expected_error(&self) -> Option<f64> {
-        Some(COARSE_EXPECTED_ERROR)
+    fn expected_error(&self, r: &ObjectRequest) -> Option<f64> {
+        Some(coarse_expected_error(&r.grid))
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
@@ -292,7 +368,7 @@ impl ModeSolver for CarriedRitzSolver {
             && !self.kept.has(r)
     }
 
-    fn expected_error(&self) -> Option<f64> {
+    fn expected_error(&self, _request: &ObjectRequest) -> Option<f64> {
         Some(CARRIED_EXPECTED_ERROR)
     }
 
@@ -379,7 +455,7 @@ impl ModeSolver for NeuralSolver {
         }
     }
 
-    fn expected_error(&self) -> Option<f64> {
+    fn expected_error(&self, _request: &ObjectRequest) -> Option<f64> {
         Some(NEURAL_EXPECTED_ERROR)
     }
 

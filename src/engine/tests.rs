@@ -1,7 +1,7 @@
 //! Engine tests. Truths: the offline path (`ModeBasis::mode_set` played by a fresh
 //! `OscillatorBank`, itself tested against analytic sines), the exponential envelope of
 //! Rayleigh mass damping, the scaling law for pitch, and refused input. The worker's solver
-//! chain (`worker`), recordings (`recordings`), per-note expression (`expression`) and the
+//! chain (`worker`), its coarse first answer (`coarse`), recordings (`recordings`), per-note expression (`expression`) and the
 //! resonator bank (`resonator`) have their own files.
 
 use super::*;
@@ -15,6 +15,7 @@ use crate::synth::{Excitation, OscillatorBank};
 use std::sync::atomic::AtomicU64;
 use std::time::Duration;
 
+mod coarse;
 mod expression;
 mod recordings;
 mod resonator;

@@ -73,9 +73,9 @@ pub trait ModeSolver: Send {
     fn applies(&self, _request: &ObjectRequest) -> bool {
         true
     }
-    /// The typical relative frequency error of this solver's answers, for the status line
-    /// (`None`: exact to the solver tolerance).
-    fn expected_error(&self) -> Option<f64> {
+    /// The typical relative frequency error of this solver's answer to `request`, for the
+    /// status line (`None`: exact to the solver tolerance).
+    fn expected_error(&self, _request: &ObjectRequest) -> Option<f64> {
         None
     }
 }
@@ -434,7 +434,7 @@ impl Worker {
                 self.shared.status_changed();
                 break;
             }
-            let expected_error = self.solvers[i].expected_error();
+            let expected_error = self.solvers[i].expected_error(request);
             self.deliver(result, name, since, expected_error, serial);
         }
         self.shared.set_state(SolveState::Idle);

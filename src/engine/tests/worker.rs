@@ -173,27 +173,6 @@ fn thick_box(side: usize) -> VoxelGrid {
 }
 
 #[test]
-fn coarse_grid_halves_thick_objects_and_refuses_thin_walls() {
-    let grid = thick_box(16);
-    let coarse = coarse_grid(&grid).expect("a 2-voxel wall survives halving");
-    assert_eq!(coarse.dims(), [8, 8, 8]);
-    assert_eq!(coarse.voxel_size_m(), 0.02);
-    // Volume kept within the stated 25 % (here exactly: the walls are aligned to 2).
-    assert_eq!(8 * coarse.count(), grid.count());
-    let thin = crate::shape::ops::hollow(
-        &VoxelGrid::from_fn([16, 16, 16], 0.01, |_, _, _| true).unwrap(),
-        1,
-    );
-    assert!(
-        coarse_grid(&thin).is_none(),
-        "a 1-voxel wall does not survive"
-    );
-    // The cost model orders objects by size.
-    let count = ModeCount::First(60);
-    assert!(predicted_cold_ms(&thick_box(24), count) > predicted_cold_ms(&grid, count));
-}
-
-#[test]
 fn a_brush_stroke_plays_the_carried_answer_then_the_exact_one() {
     // The interactive chain on a stroke: the carried answer is delivered first, within its
     // stated error of the exact one, and the exact answer (solved cold) replaces it.

@@ -106,7 +106,7 @@ impl modalforge::engine::ModeSolver for Labelled {
     fn name(&self) -> &'static str {
         self.name
     }
-    fn expected_error(&self) -> Option<f64> {
+    fn expected_error(&self, _request: &modalforge::engine::ObjectRequest) -> Option<f64> {
         self.error
     }
     fn solve(
