@@ -5,7 +5,7 @@
 //! 1. [`CoarseFemSolver`], the progressive first answer: when the exact solve is predicted to
 //!    take longer than [`PROGRESSIVE_BUDGET_MS`] and the edit cannot be warm-started, the
 //!    object resampled to half the resolution with its fills kept ([`coarse_grid`]) is solved
-//!    first (4-8x fewer DOFs) and played, with its expected error in the status
+//!    first (4-6x fewer DOFs) and played, with its expected error in the status
 //!    ([`coarse_expected_error`]: larger for one-voxel walls);
 //! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
@@ -50,9 +50,9 @@ const MIRROR_SPEEDUP: [f64; 4] = [1.0, 1.7, 3.0, 4.0];
 
 /// Predicted cold solve time of `grid` (ms, one core) for `count` modes with `element`:
 /// DOFs estimated from the voxel count, the mirrors from the fills ([`grid_mirrors`]).
-/// Against `cargo bench --bench interactive` on the presets: the glass bowl, the bell, the
-/// vases and the 24^3 sphere (0.15-0.45 s) are predicted over 100 ms; the presets solved
-/// under 100 ms are predicted at 20-80 ms.
+/// Against `cargo bench --bench interactive` on the presets (stop 59): the tin can, the
+/// glass bowl and vase, the ceramic cup and the bell (0.11-0.36 s cold) are predicted over
+/// 100 ms (115-345 ms); the ones solved under 100 ms at 29-75 ms.
 pub fn predicted_cold_ms(grid: &VoxelGrid, element: ElementKind, count: ModeCount) -> f64 {
     // Nodes of a voxel object: about the voxel count plus its surface layer.
     let voxels = grid.count() as f64;
