@@ -27,7 +27,7 @@ use crate::eigen::{ModeCount, Stop};
 use crate::fem::{ElementCache, ElementKind};
 use crate::predictor::Predictor;
 use crate::shape::fill::{fill_of, FULL, SUBCELLS, SUBCELLS_PER_AXIS};
-use crate::shape::{ops, VoxelFill, VoxelGrid};
+use crate::shape::{lattice_coords, lattice_index, ops, VoxelFill, VoxelGrid};
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -78,7 +78,7 @@ pub fn grid_mirrors(grid: &VoxelGrid, element: ElementKind) -> usize {
     let lo: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).min().unwrap_or(0));
     let hi: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).max().unwrap_or(0));
     let block = element.voxels_per_element();
-    let n = SUBCELLS_PER_AXIS;
+    let sub = [SUBCELLS_PER_AXIS; 3];
     (0..3)
         .filter(|&a| {
             if block > 1 && (lo[a] + hi[a]) % block != block - 1 {
@@ -90,9 +90,9 @@ pub fn grid_mirrors(grid: &VoxelGrid, element: ElementKind) -> usize {
                 let at = |c: [usize; 3]| grid.fill_at(c[0] as isize, c[1] as isize, c[2] as isize);
                 match (at(*v), at(m)) {
                     (VoxelFill::Partial(f), VoxelFill::Partial(g)) => (0..SUBCELLS).all(|i| {
-                        let mut s = [i % n, (i / n) % n, i / (n * n)];
-                        s[a] = n - 1 - s[a];
-                        f.0[i] == g.0[s[0] + n * (s[1] + n * s[2])]
+                        let mut s = lattice_coords(i, sub);
+                        s[a] = sub[a] - 1 - s[a];
+                        f.0[i] == g.0[lattice_index(s, sub)]
                     }),
                     (f, g) => f == g,
                 }
@@ -181,15 +181,13 @@ fn elements(shared: &SharedElements) -> std::sync::MutexGuard<'_, ElementCache> 
 pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
     let d = grid.dims();
     let cd = d.map(|v| v.div_ceil(2));
-    let n = SUBCELLS_PER_AXIS;
+    let sub = [SUBCELLS_PER_AXIS; 3];
     let mut coarse = VoxelGrid::new(cd, 2.0 * grid.voxel_size_m()).ok()?;
-    for c in
-        (0..cd[2]).flat_map(|z| (0..cd[1]).flat_map(move |y| (0..cd[0]).map(move |x| [x, y, z])))
-    {
+    for c in (0..cd.iter().product()).map(|i| lattice_coords(i, cd)) {
         // Sums of the covered fine sub-cells' bytes (a full voxel's are FULL).
         let mut sums = [0u32; SUBCELLS];
         for o in 0..8 {
-            let off = [o & 1, (o >> 1) & 1, o >> 2];
+            let off = lattice_coords(o, [2; 3]);
             let [x, y, z] = std::array::from_fn(|a| (2 * c[a] + off[a]) as isize);
             let bytes = match grid.fill_at(x, y, z) {
                 VoxelFill::Empty => continue,
@@ -197,9 +195,9 @@ pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
                 VoxelFill::Partial(f) => f.0,
             };
             for (i, &b) in bytes.iter().enumerate() {
-                let s = [i % n, (i / n) % n, i / (n * n)];
-                let [sx, sy, sz] = std::array::from_fn(|a| (off[a] * n + s[a]) / 2);
-                sums[sx + n * (sy + n * sz)] += u32::from(b);
+                let s = lattice_coords(i, sub);
+                let coarse_cell = std::array::from_fn(|a| (off[a] * sub[a] + s[a]) / 2);
+                sums[lattice_index(coarse_cell, sub)] += u32::from(b);
             }
         }
         let fill = fill_of(sums.map(|v| f64::from(v) / (8.0 * f64::from(FULL))));
