@@ -13,7 +13,8 @@
 //!   the editor's mirror mode on the object as loaded: the added voxel and its images across
 //!   every centre plane the object is symmetric in, which keeps its mirrors (a lone stroke's
 //!   exact answer is a whole solve, `exact+`);
-//! - **coarse**: the progressive first answer ([`modalforge::engine::coarse_grid`]), its time
+//! - **coarse**: the progressive first answer ([`modalforge::engine::solve_coarse`]: the
+//!   object at half the resolution, its known stiffening divided out), its time
 //!   (marked `*` where the chain plays it: the exact solve is predicted to take longer than
 //!   [`PROGRESSIVE_BUDGET_MS`]) and the mean frequency error of its lowest 10 modes against
 //!   the exact ones.
@@ -30,8 +31,8 @@
 //! the drag (what a drag that keeps interrupting plays).
 
 use modalforge::basis::ModeBasis;
-use modalforge::eigen::{EigenOptions, ModeCount, SolverKind};
-use modalforge::engine::{coarse_grid, predicted_cold_ms, PROGRESSIVE_BUDGET_MS};
+use modalforge::eigen::{EigenOptions, ModeCount, SolverKind, Stop};
+use modalforge::engine::{predicted_cold_ms, solve_coarse, PROGRESSIVE_BUDGET_MS};
 use modalforge::fem::{ElementCache, ElementKind, FemModel};
 use modalforge::material::Material;
 use modalforge::shape::spec::{self, ShapeSpec};
@@ -454,8 +455,16 @@ fn main() {
         let mirrored = mirrored_stroke(&grid);
         let (_, mirrored_ms) = chain_exact(&mirrored, kind, nu, &options, &mut cache);
         let t = Instant::now();
-        let coarse = coarse_grid(&grid)
-            .and_then(|g| ModeBasis::solve(&g, kind, nu, SolverKind::Auto, &options).ok());
+        let coarse = solve_coarse(
+            &grid,
+            kind,
+            nu,
+            SolverKind::Auto,
+            &options,
+            None,
+            Stop::NEVER,
+        )
+        .ok();
         let coarse_ms = t.elapsed().as_secs_f64() * 1e3;
         let (coarse_ms, err) = match &coarse {
             Some(c) => {

@@ -35,10 +35,11 @@ pub use answers::KeptAnswers;
 pub use audio::{AudioEngine, STEAL_FADE_SAMPLES};
 pub use object::{ObjectModes, SolvedObject};
 pub use solvers::{
-    coarse_expected_error, coarse_grid, grid_mirrors, interactive_solvers, mean_wall_voxels,
-    predicted_cold_ms, AnswerSwitch, Answers, CarriedRitzSolver, CoarseFemSolver,
-    IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR, COARSE_EXPECTED_ERROR,
-    COARSE_THIN_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR, PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS,
+    coarse_expected_error, coarse_grid, coarse_stiffening, grid_mirrors, interactive_solvers,
+    mean_wall_voxels, predicted_cold_ms, solve_coarse, AnswerSwitch, Answers, CarriedRitzSolver,
+    CoarseFemSolver, IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR,
+    COARSE_EXPECTED_ERROR, COARSE_THIN_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR,
+    PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS,
 };
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{

@@ -5,7 +5,8 @@
 //! 1. [`CoarseFemSolver`], the progressive first answer: when the exact solve is predicted to
 //!    take longer than [`PROGRESSIVE_BUDGET_MS`] and the edit cannot be warm-started, the
 //!    object resampled to half the resolution with its fills kept ([`coarse_grid`]) is solved
-//!    first (4-6x fewer DOFs) and played, with its expected error in the status
+//!    first (4-6x fewer DOFs), its known stiffening divided out ([`solve_coarse`],
+//!    `solvers/coarse.rs`), and played, with its expected error in the status
 //!    ([`coarse_expected_error`]: larger for one-voxel walls);
 //! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
@@ -24,131 +25,18 @@ use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::eigen::{ModeCount, Stop};
-use crate::fem::{ElementCache, ElementKind};
+use crate::fem::ElementCache;
 use crate::predictor::Predictor;
-use crate::shape::fill::{fill_of, FULL, SUBCELLS, SUBCELLS_PER_AXIS};
-use crate::shape::{lattice_coords, lattice_index, ops, VoxelFill, VoxelGrid};
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
-/// An exact solve predicted to take longer than this (ms) gets a coarse answer first.
-pub const PROGRESSIVE_BUDGET_MS: f64 = 100.0;
+mod coarse;
 
-/// Predicted one-core time of a cold exact solve of an object without mirrors, ms per DOF
-/// per wanted pair (modes plus six rigid): the default bowl solved whole (hex27x2, 60 modes,
-/// as a stroke off its planes leaves it) takes 0.72e-3 ([`predicted_cold_ms`] divides by
-/// [`MIRROR_SPEEDUP`] for mirrored ones); an estimate for scheduling, not a promise.
-const COLD_MS_PER_DOF_PAIR: f64 = 0.7e-3;
-
-/// How much faster a cold solve is with 0, 1, 2 or 3 mirror planes (solved by symmetry
-/// classes, `eigen/symmetric.rs`). Measured side by side with whole solves (hex27x2, 60
-/// modes): two mirrors (and the bowls' axis swap) 2.8-3.4x (the bell, the default bowl),
-/// three 6.5x (a 16-voxel sphere); but 4 fits the cold times of the three-mirror presets and
-/// the 24^3 sphere (`cargo bench --bench interactive`, stop 59: within 0.8-1.3x of the
-/// estimate), whose classes are smaller and pay more overhead each. One mirror between.
-const MIRROR_SPEEDUP: [f64; 4] = [1.0, 1.7, 3.0, 4.0];
-
-/// Predicted cold solve time of `grid` (ms, one core) for `count` modes with `element`:
-/// DOFs estimated from the voxel count, the mirrors from the fills ([`grid_mirrors`]).
-/// Against `cargo bench --bench interactive` on the presets (stop 59): the tin can, the
-/// glass bowl and vase, the ceramic cup and the bell (0.11-0.36 s cold) are predicted over
-/// 100 ms (115-345 ms); the ones solved under 100 ms at 29-75 ms.
-pub fn predicted_cold_ms(grid: &VoxelGrid, element: ElementKind, count: ModeCount) -> f64 {
-    // Nodes of a voxel object: about the voxel count plus its surface layer.
-    let voxels = grid.count() as f64;
-    let dofs = 3.0 * (voxels + 2.0 * voxels.powf(2.0 / 3.0) + voxels / 2.0);
-    let pairs = match count {
-        ModeCount::First(k) => k as f64 + 6.0,
-        ModeCount::Below(_) => 66.0,
-    };
-    COLD_MS_PER_DOF_PAIR * dofs * pairs / MIRROR_SPEEDUP[grid_mirrors(grid, element)]
-}
-
-/// How many of the three axes `grid` is mirror-symmetric along, fill for fill (a partial
-/// voxel's sub-cells mirrored too), about the centre of its solid voxels' bounding box, with
-/// `element`'s blocks mapped onto blocks (hex27x2's start at the grid's origin, so the box's
-/// first and last voxel indices must add up to an odd number). The eigensolver finds its
-/// mirrors on the assembled matrices (`eigen/symmetric.rs`); this is the cheap look at the
-/// voxels that the time estimate needs before any assembly.
-pub fn grid_mirrors(grid: &VoxelGrid, element: ElementKind) -> usize {
-    let solid = grid.solid_voxels();
-    if solid.is_empty() {
-        return 0;
-    }
-    let lo: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).min().unwrap_or(0));
-    let hi: [usize; 3] = std::array::from_fn(|a| solid.iter().map(|v| v[a]).max().unwrap_or(0));
-    let block = element.voxels_per_element();
-    let sub = [SUBCELLS_PER_AXIS; 3];
-    (0..3)
-        .filter(|&a| {
-            if block > 1 && (lo[a] + hi[a]) % block != block - 1 {
-                return false;
-            }
-            solid.iter().all(|v| {
-                let mut m = *v;
-                m[a] = lo[a] + hi[a] - v[a];
-                let at = |c: [usize; 3]| grid.fill_at(c[0] as isize, c[1] as isize, c[2] as isize);
-                match (at(*v), at(m)) {
-                    (VoxelFill::Partial(f), VoxelFill::Partial(g)) => (0..SUBCELLS).all(|i| {
-                        let mut s = lattice_coords(i, sub);
-                        s[a] = sub[a] - 1 - s[a];
-                        f.0[i] == g.0[lattice_index(s, sub)]
-                    }),
-                    (f, g) => f == g,
-                }
-            })
-        })
-        .count()
-}
-
-/// Mean frequency error of the coarse answer's lowest 10 modes on objects whose walls are
-/// thicker than [`THIN_WALL_VOXELS`], for the status line ([`coarse_expected_error`]).
-/// Measured by `cargo bench --bench interactive` and a side-by-side harness (hex27x2, 60
-/// modes): a 24^3 sphere 0.0 %, a 32-voxel bowl with a 4-voxel wall 0.8 %, a 10x12x16 box
-/// 0.4 %, the default bowl and the bell (2-voxel walls, curved) 3.3 % and 3.7 %.
-pub const COARSE_EXPECTED_ERROR: f64 = 0.05;
-
-/// [`COARSE_EXPECTED_ERROR`] for walls at most [`THIN_WALL_VOXELS`] thick: the elements of the
-/// half-resolution grid are four wall thicknesses across, so bending comes out stiff. The
-/// same measurement: the glass bowl 10.5 %, the aluminium plate 8.2 %, the brass gong 8.1 %,
-/// the tin can 14.1 %, the glass vase 13.6 %, the ceramic cup 14.2 %, the plastic crate
-/// 13.3 %.
-pub const COARSE_THIN_EXPECTED_ERROR: f64 = 0.15;
-
-/// Mean wall thickness ([`mean_wall_voxels`]) at or under which [`coarse_expected_error`]
-/// says [`COARSE_THIN_EXPECTED_ERROR`]: the one-voxel walls of the presets measure 0.78-1.0,
-/// the two-voxel curved ones 1.2-1.3.
-pub const THIN_WALL_VOXELS: f64 = 1.1;
-
-/// The coarse answer's expected error for `grid` (see [`COARSE_EXPECTED_ERROR`]).
-pub fn coarse_expected_error(grid: &VoxelGrid) -> f64 {
-    if mean_wall_voxels(grid) <= THIN_WALL_VOXELS {
-        COARSE_THIN_EXPECTED_ERROR
-    } else {
-        COARSE_EXPECTED_ERROR
-    }
-}
-
-/// An object's mean wall thickness in voxels, `2 V / A`: twice its filled volume over its
-/// surface area, both counted on the voxel fills (the area as the fill's jumps between
-/// neighbouring voxels along each axis). A plate or a shell of thickness `t` gives about `t`.
-pub fn mean_wall_voxels(grid: &VoxelGrid) -> f64 {
-    let d = grid.dims().map(|v| v as isize);
-    let f = |x, y, z| grid.fraction(x, y, z);
-    let (mut volume, mut area) = (0.0, 0.0);
-    for z in -1..=d[2] {
-        for y in -1..=d[1] {
-            for x in -1..=d[0] {
-                let here = f(x, y, z);
-                volume += here;
-                area += (f(x + 1, y, z) - here).abs()
-                    + (f(x, y + 1, z) - here).abs()
-                    + (f(x, y, z + 1) - here).abs();
-            }
-        }
-    }
-    2.0 * volume / area.max(1.0)
-}
+pub use coarse::{
+    coarse_expected_error, coarse_grid, coarse_stiffening, grid_mirrors, mean_wall_voxels,
+    predicted_cold_ms, solve_coarse, COARSE_EXPECTED_ERROR, COARSE_THIN_EXPECTED_ERROR,
+    PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS,
+};
 
 /// Typical largest relative frequency error of the carried answer to a one-voxel stroke, for
 /// the status line: `cargo bench --bench interactive` measures 1e-5 to 1.3e-2 on the presets
@@ -167,43 +55,6 @@ type SharedElements = Arc<Mutex<ElementCache>>;
 
 fn elements(shared: &SharedElements) -> std::sync::MutexGuard<'_, ElementCache> {
     shared.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// `grid` resampled to half the resolution (the voxel edge doubles, the extent stays), its
-/// fills kept: each coarse voxel's sub-cells ([`SUBCELLS_PER_AXIS`] a side) hold the mean of
-/// the `2^3` fine sub-cells they cover, summed in integers so that mirror-image voxels get
-/// the same bytes (and the coarse model keeps the object's mirrors). The geometry is the
-/// fine grid's at half the sub-cell resolution, so a wall one voxel thick stays one voxel
-/// thick (half of a coarse voxel), where thresholding whole voxels would make it two or
-/// nothing. `None` where the coarse grid would join parts the fine one keeps apart (its
-/// face-connected components, counted on the voxels, differ: the answer would have the wrong
-/// rigid-body modes) or is empty.
-pub fn coarse_grid(grid: &VoxelGrid) -> Option<VoxelGrid> {
-    let d = grid.dims();
-    let cd = d.map(|v| v.div_ceil(2));
-    let sub = [SUBCELLS_PER_AXIS; 3];
-    let mut coarse = VoxelGrid::new(cd, 2.0 * grid.voxel_size_m()).ok()?;
-    for c in (0..cd.iter().product()).map(|i| lattice_coords(i, cd)) {
-        // Sums of the covered fine sub-cells' bytes (a full voxel's are FULL).
-        let mut sums = [0u32; SUBCELLS];
-        for o in 0..8 {
-            let off = lattice_coords(o, [2; 3]);
-            let [x, y, z] = std::array::from_fn(|a| (2 * c[a] + off[a]) as isize);
-            let bytes = match grid.fill_at(x, y, z) {
-                VoxelFill::Empty => continue,
-                VoxelFill::Full => [FULL; SUBCELLS],
-                VoxelFill::Partial(f) => f.0,
-            };
-            for (i, &b) in bytes.iter().enumerate() {
-                let s = lattice_coords(i, sub);
-                let coarse_cell = std::array::from_fn(|a| (off[a] * sub[a] + s[a]) / 2);
-                sums[lattice_index(coarse_cell, sub)] += u32::from(b);
-            }
-        }
-        let fill = fill_of(sums.map(|v| f64::from(v) / (8.0 * f64::from(FULL))));
-        coarse.set_fill(c[0], c[1], c[2], fill);
-    }
-    (coarse.count() > 0 && ops::components(&coarse).1 == ops::components(grid).1).then_some(coarse)
 }
 
 /// Whether `request` is an edit of `previous` that the carried answer serves: the same element
@@ -332,9 +183,8 @@ impl ModeSolver for CoarseFemSolver {
     }
 
     fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
-        let grid = coarse_grid(&r.grid).ok_or(BasisError::NoCoarseGrid)?;
-        ModeBasis::solve_cached(
-            &grid,
+        solve_coarse(
+            &r.grid,
             r.element,
             r.poisson_ratio,
             r.solver,
@@ -509,6 +359,7 @@ mod tests {
     use crate::eigen::{EigenOptions, SolverKind};
     use crate::fem::ElementKind;
     use crate::shape::primitives::Primitive;
+    use crate::shape::VoxelGrid;
 
     #[test]
     fn a_strokes_answers_reuse_the_cut_elements_of_the_last_exact_answer() {
