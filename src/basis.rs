@@ -160,7 +160,8 @@ pub struct StruckMode {
     pub damped: DampedMode,
     /// Impulse amplitude for the strike.
     pub gain: f64,
-    /// Residual of the eigenpair (Jin et al. 2022, eq. 6).
+    /// Residual of the eigenpair (Jin et al. 2022, eq. 6); `NaN` for an approximate answer
+    /// that does not compute it (a predicted or carried one).
     pub residual: f64,
 }
 

@@ -155,7 +155,8 @@ pub struct EigenSolution {
     pub eigenvalues: Vec<f64>,
     /// M-orthonormal eigenvectors, one column each.
     pub vectors: Mat<f64>,
-    /// Residual (Jin et al. 2022, eq. 6) of each pair.
+    /// Residual (Jin et al. 2022, eq. 6) of each pair; `NaN` where it was not computed (the
+    /// instant carried answer, [`warm::ritz`]).
     pub residuals: Vec<f64>,
     /// Number of zero-frequency (rigid-body) modes found and dropped.
     pub rigid_modes: usize,

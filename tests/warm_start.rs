@@ -145,28 +145,17 @@ fn warm_solves_of_brush_strokes_match_cold_solves() {
             let err = worst_relative(&frequencies(&carried), &frequencies(&reference));
             eprintln!("{kind}: carried vs cold: {err:.1e}");
             assert!(err < 1e-3, "{kind}: carried vs cold: {err:.1e}");
-            // Its residuals come from the products Rayleigh-Ritz already made (and the patch's
-            // rows): the same as recomputed from K and M, to rounding relative to residuals
-            // of 1e-5 to 1e-2 (a missing or mis-transposed patch term is of their own size),
-            // plus what the stiffness images inherit from the previous solve away from the
-            // edit (`K x = lambda M x` to its residual, eigen/warm/images.rs): at most 10x the
-            // previous largest residual (here 1.4e-6 to 8.7e-6 after the warm solves, loose:
-            // the differences measured were about 1e-11).
+            // Its residuals are not computed (NaN, as for a predicted answer: two more block
+            // products for a figure nothing reads). Recomputed here from K and M, they are far
+            // above the solver's tolerance (the answer is approximate) and small: the carried
+            // vectors are close to the modes (measured 4.9e-5 to 1.6e-4 on these strokes).
             let sol = &carried.solution;
+            assert!(sol.residuals.iter().all(|r| r.is_nan()), "{kind}");
             let explicit = Operators::new(&carried.model)
                 .block_residuals(&sol.eigenvalues, sol.vectors.as_ref());
-            let inherited = 10.0
-                * previous
-                    .solution
-                    .residuals
-                    .iter()
-                    .fold(0.0f64, |a, &r| a.max(r));
-            for (got, want) in sol.residuals.iter().zip(&explicit) {
-                assert!(
-                    (got - want).abs() <= 1e-6 * want + inherited,
-                    "{kind}: residual {got:e} vs explicit {want:e}"
-                );
-            }
+            let worst = explicit.iter().fold(0.0f64, |a, &r| a.max(r));
+            eprintln!("{kind}: carried residuals at most {worst:.1e}");
+            assert!(worst < 1e-3, "{kind}: carried residual {worst:e}");
             previous = warm;
         }
     }

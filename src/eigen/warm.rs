@@ -124,14 +124,32 @@ pub fn transfer(
     next: &FemModel,
     offset: [i64; 3],
 ) -> Transferred {
+    transfer_rows(
+        previous,
+        &to_rows(vectors),
+        vectors.ncols(),
+        next,
+        offset,
+        0,
+    )
+}
+
+/// [`transfer`] of the previous vectors given by rows (`old_rows[i * w + j]`, as
+/// [`previous_rows`] gives them), into a block of `lead + w` columns whose first `lead` are
+/// left zero for the caller (the instant answer's rigid fields): one pass and one buffer.
+fn transfer_rows(
+    previous: &FemModel,
+    old_rows: &[f64],
+    w: usize,
+    next: &FemModel,
+    offset: [i64; 3],
+    lead: usize,
+) -> Transferred {
     let p = next.kind.order() as i64;
-    let w = vectors.ncols();
     let n = next.dofs();
-    let mut block = vec![0.0; n * w];
-    // The previous vectors by rows (a node's three DOFs' values side by side), so that a
-    // carried row is one contiguous copy or sum.
-    let old_rows = to_rows(vectors);
-    let old_row = |o: usize| &old_rows[3 * o * w..3 * (o + 1) * w];
+    let width = lead + w;
+    let mut block = vec![0.0; n * width];
+    let old_row = |o: usize, c: usize| &old_rows[(3 * o + c) * w..(3 * o + c + 1) * w];
     let [plx, ply, plz] = previous.lattice.map(|v| v as i64);
     let old_node = |q: [i64; 3]| -> Option<usize> {
         if (0..3).any(|a| q[a] < 0) || q[0] >= plx || q[1] >= ply || q[2] >= plz {
@@ -144,10 +162,12 @@ pub fn transfer(
     for node in 0..next.nodes() {
         let here = next.node_lattice_coords(node);
         let q = [0, 1, 2].map(|a| here[a] + p * offset[a]);
-        let row = &mut block[3 * node * w..3 * (node + 1) * w];
+        let rows = &mut block[3 * node * width..3 * (node + 1) * width];
         if let Some(o) = old_node(q) {
             kept += 1;
-            row.copy_from_slice(old_row(o));
+            for (c, row) in rows.chunks_exact_mut(width).enumerate() {
+                row[lead..].copy_from_slice(old_row(o, c));
+            }
             continue;
         }
         fresh += 1;
@@ -156,16 +176,23 @@ pub fn transfer(
             let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
             if let Some(o) = old_node([0, 1, 2].map(|a| q[a] + step[a])) {
                 count += 1.0;
-                row.iter_mut().zip(old_row(o)).for_each(|(r, v)| *r += v);
+                for (c, row) in rows.chunks_exact_mut(width).enumerate() {
+                    row[lead..]
+                        .iter_mut()
+                        .zip(old_row(o, c))
+                        .for_each(|(r, v)| *r += v);
+                }
             }
         }
         if count > 0.0 {
-            row.iter_mut().for_each(|v| *v /= count);
+            for row in rows.chunks_exact_mut(width) {
+                row[lead..].iter_mut().for_each(|v| *v /= count);
+            }
         }
     }
     Transferred {
         block,
-        columns: w,
+        columns: width,
         kept_nodes: kept,
         new_nodes: fresh,
     }
@@ -250,9 +277,10 @@ pub fn solve(
 /// factorisation and no iteration: two block products and a dense eigenproblem the size of
 /// the block. A Ritz value's error is second order in its vector's error (Parlett, *The
 /// Symmetric Eigenvalue Problem*, Thm. 11.7.1), so after a brush stroke the frequencies are
-/// within about 1e-5 of exact (`cargo bench --bench interactive`); the residuals (reported)
-/// are far above the solver tolerance, so this answer is for playing while
-/// [`solve`] computes the exact one.
+/// within about 1e-5 of exact (`cargo bench --bench interactive`); the vectors' residuals
+/// are far above the solver tolerance (1e-4 measured, `tests/warm_start.rs`), so this answer
+/// is for playing while [`solve`] computes the exact one, and it reports them as `NaN` (not
+/// computed: they would cost two more products over the whole block).
 pub fn ritz(
     next: &FemModel,
     previous: &FemModel,
@@ -262,8 +290,7 @@ pub fn ritz(
 ) -> Result<EigenSolution, EigenError> {
     let t0 = Instant::now();
     let ops = Operators::new(next);
-    let old_vectors = previous_columns(previous_solution, RITZ_GUARDS);
-    let carried = transfer(previous, old_vectors.as_ref(), next, offset);
+    let (old_rows, cc) = previous_rows(previous_solution, RITZ_GUARDS);
     let n = ops.dofs();
     // The exact rigid fields, unless the previous rigid modes (more than six) are carried.
     let fields = if extra_rigid(previous_solution).ncols() > 0 {
@@ -271,20 +298,22 @@ pub fn ritz(
     } else {
         6
     };
-    let w = fields + carried.columns;
+    let w = fields + cc;
     if w > n {
         return Err(EigenError::TooFewDofs {
             dofs: n,
             wanted: count,
         });
     }
-    let rigid = rigid_fields(next);
-    // The block by rows (as `transfer` gives it), then by columns.
-    let cc = carried.columns;
-    let mut x_rows = vec![0.0; n * w];
-    for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
-        row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
-        row[fields..].copy_from_slice(&carried.block[i * cc..(i + 1) * cc]);
+    // The block by rows: the carried columns after `fields` leading ones, which take the
+    // rigid fields.
+    let mut x_rows = transfer_rows(previous, &old_rows, cc, next, offset, fields).block;
+    drop(old_rows);
+    if fields > 0 {
+        let rigid = rigid_fields(next);
+        for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
+            row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
+        }
     }
     // `X` and `M X` are read in place, by rows (a transposed copy of either cost ~3 ms).
     let x = MatRef::from_row_major_slice(&x_rows, n, w);
@@ -331,13 +360,12 @@ pub fn ritz(
     }
     let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
-    // The Ritz vectors and their images: `K V = (K X) C_x + K Delta C_d`, from the products
-    // already made (two dense products and the patch's sparse rows instead of two more block
-    // SpMMs over the whole matrix: 25-30 ms of the default bowl's ~90).
+    // The Ritz vectors, `V = X C_x + Delta C_d`. Their residuals are not computed (`NaN`, as
+    // for a predicted answer): `K V` and `M V` would cost two more dense products over the
+    // whole block, as long as the rest of this answer on a large object, for a figure nothing
+    // reads (the answer plays until the exact one lands; its error is the status line's).
     let c_x = c.get(..w, ..);
     let mut vectors = x * c_x;
-    let mut kv = &kx * c_x;
-    let mut mv = mx * c_x;
     if let Some(cor) = &correction {
         let local = &cor.delta * c.get(w.., ..);
         for (i, &d) in cor.dofs.iter().enumerate() {
@@ -345,9 +373,8 @@ pub fn ritz(
                 vectors[(d, j)] += local[(i, j)];
             }
         }
-        cor.add_images(&ops, &local, &mut kv, &mut mv);
     }
-    let residuals = residuals_from_images(&ops, &theta, &vectors, &kv, &mv);
+    let residuals = vec![f64::NAN; want];
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, residuals[j])).collect();
     let sel = select(&ops, &pairs, ModeCount::First(count));
     if sel.rigid != previous_solution.rigid_modes {
@@ -377,7 +404,7 @@ pub fn ritz(
 
 /// `out += A s` for one node block `A` (3x3, row-major) and the by-rows values of one node
 /// `s` (three DOF rows of `w` columns side by side; `out` likewise): the inner step of the
-/// products over a few node rows (`images`, `correction`).
+/// products over a few node rows (`images`).
 fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
     let w = s.len() / 3;
     if w == 0 {
@@ -416,28 +443,6 @@ fn gram(x: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
         }
     }
     g
-}
-
-/// Residuals (Jin et al. 2022, eq. 6) of the pairs `(theta[j], v[:, j])` from their images
-/// `K v` and `M v`, as [`Operators::block_residuals`] computes them by its own products.
-fn residuals_from_images(
-    ops: &Operators,
-    theta: &[f64],
-    v: &Mat<f64>,
-    kv: &Mat<f64>,
-    mv: &Mat<f64>,
-) -> Vec<f64> {
-    (0..v.ncols())
-        .map(|j| {
-            let (mut r2, mut x2) = (0.0, 0.0);
-            for i in 0..v.nrows() {
-                let r = kv[(i, j)] - theta[j] * mv[(i, j)];
-                r2 += r * r;
-                x2 += v[(i, j)] * v[(i, j)];
-            }
-            r2.sqrt() / ((ops.k_norm + theta[j].abs() * ops.m_norm) * x2.sqrt())
-        })
-        .collect()
 }
 
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
@@ -532,6 +537,36 @@ fn previous_columns(previous: &EigenSolution, guards: usize) -> Mat<f64> {
         previous.guard_vectors.get(.., ..guards),
     );
     concat_columns(extra_rigid(previous), modes.as_ref())
+}
+
+/// [`previous_columns`] by rows (`out[i * w + j]`, the layout [`transfer_rows`] reads), and
+/// their number `w`: one pass over the previous solution in tiles of rows, where
+/// [`previous_columns`] then [`to_rows`] copied each column twice.
+fn previous_rows(previous: &EigenSolution, guards: usize) -> (Vec<f64>, usize) {
+    const TILE_ROWS: usize = 64;
+    let guards = previous.guard_vectors.ncols().min(guards);
+    let parts = [
+        extra_rigid(previous),
+        previous.vectors.as_ref(),
+        previous.guard_vectors.get(.., ..guards),
+    ];
+    let n = previous.vectors.nrows();
+    let w: usize = parts.iter().map(|m| m.ncols()).sum();
+    let mut out = vec![0.0; n * w];
+    for start in (0..n).step_by(TILE_ROWS) {
+        let end = (start + TILE_ROWS).min(n);
+        let mut at = 0;
+        for part in &parts {
+            for j in 0..part.ncols() {
+                let column = part.col(j);
+                for i in start..end {
+                    out[i * w + at + j] = column[i];
+                }
+            }
+            at += part.ncols();
+        }
+    }
+    (out, w)
 }
 
 /// `[a | b]`.

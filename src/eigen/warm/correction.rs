@@ -1,5 +1,5 @@
 //! The instant answer's relaxation near an edit: static local corrections of the carried
-//! vectors on a patch of nodes around the edited cells, and their images `K D`, `M D`.
+//! vectors on a patch of nodes around the edited cells, and their images `K D`, `M D` on it.
 //!
 //! Where it sits: inside [`super::ritz`], after the Gram matrices of the carried block `X`
 //! (and its images `K X`, `M X`) and before the Rayleigh-Ritz step on `[X, D]`. For each
@@ -11,13 +11,11 @@
 //! Cost: the patch's stiffness (a few hundred nodes) is factored sparse, in nested-dissection
 //! order, by the solvers' own [`ShiftedCholesky`] with no shift (2-3x faster than the dense
 //! factor it replaced); `K_pp D` is the right-hand side itself (`K_pp K_pp^-1 r = r`);
-//! `M_pp D` and the images of the combined corrections use the mass's scalars (`M_ab I3`,
-//! [`crate::fem::sparse::MassBlocks`]) and read the corrections by rows, a node's values side
-//! by side.
+//! `M_pp D` uses the mass's scalars (`M_ab I3`, [`crate::fem::sparse::MassBlocks`]) and reads
+//! the corrections by rows, a node's values side by side.
 
 use super::super::factor::ShiftedCholesky;
 use super::super::{from_rows, to_rows, Operators};
-use super::add_block_product;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
 use faer::{Mat, MatRef, Par};
@@ -95,83 +93,28 @@ pub(super) fn local_correction(
 }
 
 impl Correction {
-    /// Adds `K D` and `M D` to `kv` and `mv` (`n x want`), where `D` is `combined` on the patch
-    /// DOFs (`3 p x want`) and zero elsewhere: only the rows coupled to the patch change.
-    pub(super) fn add_images(
-        &self,
-        ops: &Operators,
-        combined: &Mat<f64>,
-        kv: &mut Mat<f64>,
-        mv: &mut Mat<f64>,
-    ) {
-        let patch: Vec<usize> = self.dofs.iter().step_by(3).map(|d| d / 3).collect();
-        // Every node coupled to the patch: a row of `K D` that may be non-zero.
-        let mut seen = vec![false; ops.pattern.nodes()];
-        let mut rows = Vec::new();
-        for &node in &patch {
-            for b in ops.pattern.row_ptr[node]..ops.pattern.row_ptr[node + 1] {
-                let r = ops.pattern.col[b] as usize;
-                if !std::mem::replace(&mut seen[r], true) {
-                    rows.push(r);
-                }
-            }
-        }
-        let (k_rows, m_rows) = self.products(ops, &rows, combined, true);
-        let want = combined.ncols();
-        for (i, &r) in rows.iter().enumerate() {
-            for c in 0..3 {
-                let (ks, ms) = (
-                    &k_rows[(3 * i + c) * want..(3 * i + c + 1) * want],
-                    &m_rows[(3 * i + c) * want..(3 * i + c + 1) * want],
-                );
-                for j in 0..want {
-                    kv[(3 * r + c, j)] += ks[j];
-                    mv[(3 * r + c, j)] += ms[j];
-                }
-            }
-        }
-    }
-
     /// `M_pp delta` (`3 p x w`, column-major).
     fn mass_images(&self, ops: &Operators, patch: &[usize]) -> Mat<f64> {
-        let (_, rows) = self.products(ops, patch, &self.delta, false);
-        from_rows(&rows, self.delta.ncols())
-    }
-
-    /// `A D` for `A = K` (when `with_k`) and `A = M` on the node rows `rows`, row-major
-    /// (`3 rows.len() x w`), where `D` (`3 p x w`) lives on the patch: each row sums over its
-    /// blocks whose column node is in the patch. `M`'s blocks are read as scalars (`M_ab I3`),
-    /// or whole where they are not.
-    fn products(
-        &self,
-        ops: &Operators,
-        rows: &[usize],
-        d: &Mat<f64>,
-        with_k: bool,
-    ) -> (Vec<f64>, Vec<f64>) {
-        let w = d.ncols();
-        let by_rows = to_rows(d.as_ref());
-        let mut k_out = vec![0.0; if with_k { 3 * rows.len() * w } else { 0 }];
-        let mut m_out = vec![0.0; 3 * rows.len() * w];
-        for (i, &r) in rows.iter().enumerate() {
+        let w = self.delta.ncols();
+        let by_rows = to_rows(self.delta.as_ref());
+        let mut out = vec![0.0; 3 * patch.len() * w];
+        // Each patch row sums over its blocks whose column node is in the patch; `M`'s blocks
+        // are `M_ab I3`, read as scalars.
+        for (i, &r) in patch.iter().enumerate() {
             for b in ops.pattern.row_ptr[r]..ops.pattern.row_ptr[r + 1] {
                 let a = self.local[ops.pattern.col[b] as usize];
                 if a == u32::MAX {
                     continue;
                 }
                 let src = &by_rows[3 * a as usize * w..3 * (a as usize + 1) * w];
-                let out = 3 * i * w..3 * (i + 1) * w;
-                if with_k {
-                    add_block_product(&ops.k[b], src, &mut k_out[out.clone()]);
-                }
                 let s = ops.m[b];
-                m_out[out]
+                out[3 * i * w..3 * (i + 1) * w]
                     .iter_mut()
                     .zip(src)
                     .for_each(|(o, v)| *o += s * v);
             }
         }
-        (k_out, m_out)
+        from_rows(&out, w)
     }
 }
 
@@ -239,17 +182,6 @@ mod tests {
                     assert!((cor.m_delta[(i, j)] - md[(dof, j)]).abs() <= 1e-12 * scale(&md));
                 }
             }
-            let c = Mat::from_fn(w, 3, |_, _| rng.unit() - 0.5);
-            let combined = &cor.delta * &c;
-            let (mut kv, mut mv) = (Mat::<f64>::zeros(n, 3), Mat::<f64>::zeros(n, 3));
-            cor.add_images(&ops, &combined, &mut kv, &mut mv);
-            let full = pad(&combined);
-            let (kw, mw) = (
-                ops.apply_block(Which::K, full.as_ref()),
-                ops.apply_block(Which::M, full.as_ref()),
-            );
-            assert!((&kv - &kw).norm_max() <= 1e-12 * kw.norm_max(), "{kind:?}");
-            assert!((&mv - &mw).norm_max() <= 1e-12 * mw.norm_max(), "{kind:?}");
         }
     }
 }
