@@ -320,25 +320,26 @@ pub fn ritz(
     let edited = edited_cells(previous, next, offset);
     let mx_rows = ops.rows_product(super::Which::M, &x_rows, w);
     let mx = MatRef::from_row_major_slice(&mx_rows, n, w);
-    let kx = images::stiffness_images(
+    let kx_rows = images::stiffness_images(
         &ops,
         next,
         edited.as_ref(),
         previous_solution,
         &x_rows,
-        mx,
+        &mx_rows,
         fields,
     );
+    let kx = MatRef::from_row_major_slice(&kx_rows, n, w);
     // (`X^T K X` is symmetric but for the carried modes' residuals, which `images` leaves in
     // `K X`: one triangle of it serves.)
-    let mut gk = gram(x, kx.as_ref());
+    let mut gk = gram(x, kx);
     let mut gm = gram(x, mx);
     let correction = edited
         .as_ref()
         .and_then(|e| edit_patch(next, e))
         .and_then(|p| {
             let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
-            correction::local_correction(&ops, next, &p, &theta, &kx, mx)
+            correction::local_correction(&ops, next, &p, &theta, kx, mx)
         });
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
@@ -355,7 +356,7 @@ pub fn ritz(
                 (false, false) => dd[(i - w, j - w)],
             })
         };
-        gk = grow(&gk, kx.as_ref(), &cor.k_delta);
+        gk = grow(&gk, kx, &cor.k_delta);
         gm = grow(&gm, mx, &cor.m_delta);
     }
     let want = (previous_solution.rigid_modes + count).min(w);

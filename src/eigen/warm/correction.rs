@@ -41,7 +41,7 @@ pub(super) fn local_correction(
     model: &FemModel,
     patch: &[usize],
     theta: &[f64],
-    kx: &Mat<f64>,
+    kx: MatRef<'_, f64>,
     mx: MatRef<'_, f64>,
 ) -> Option<Correction> {
     let np = patch.len();
@@ -160,7 +160,8 @@ mod tests {
                 ops.apply_block(Which::M, x.as_ref()),
             );
             let theta = vec![0.1; w];
-            let cor = local_correction(&ops, &model, &patch, &theta, &kx, mx.as_ref()).unwrap();
+            let cor =
+                local_correction(&ops, &model, &patch, &theta, kx.as_ref(), mx.as_ref()).unwrap();
             let pad = |d: &Mat<f64>| {
                 let mut full = Mat::<f64>::zeros(n, d.ncols());
                 for (i, &dof) in cor.dofs.iter().enumerate() {

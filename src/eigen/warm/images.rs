@@ -21,7 +21,7 @@
 use super::super::{EigenSolution, Operators, Which};
 use super::{add_block_product, extra_rigid, nodes_near};
 use crate::fem::FemModel;
-use faer::{Mat, MatRef};
+
 use std::collections::HashSet;
 
 /// A carried mode whose residual was at most this (the default solver tolerance) is taken as
@@ -30,19 +30,19 @@ pub(super) const RELATION_MAX_RESIDUAL: f64 = 1e-6;
 
 /// `K X` on `next` for the instant answer's block `X` (`n x w`, given by rows: `x_rows[i * w +
 /// j]`; `fields` rigid fields, then the carried columns of [`super::previous_columns`]), given
-/// `M X` (`mx`) and the cells
-/// the edit changed ([`super::edited_cells`]). See the module docs; the whole product where
-/// the edit is too large to tell apart (`edited` is `None`).
+/// `M X` (`mx_rows`, by rows) and the cells
+/// the edit changed ([`super::edited_cells`]), by rows. See the module docs; the whole product
+/// where the edit is too large to tell apart (`edited` is `None`).
 pub(super) fn stiffness_images(
     ops: &Operators,
     next: &FemModel,
     edited: Option<&HashSet<[i64; 3]>>,
     previous_solution: &EigenSolution,
     x_rows: &[f64],
-    mx: MatRef<'_, f64>,
+    mx_rows: &[f64],
     fields: usize,
-) -> Mat<f64> {
-    let (n, w) = (mx.nrows(), mx.ncols());
+) -> Vec<f64> {
+    let (n, w) = (ops.dofs(), x_rows.len() / ops.dofs().max(1));
     let extra = extra_rigid(previous_solution).ncols();
     let modes = previous_solution.vectors.ncols();
     // Per column: the eigenvalue whose relation gives its image, or `None` (multiplied out).
@@ -58,9 +58,15 @@ pub(super) fn stiffness_images(
         .filter(|_| !related.is_empty())
         .and_then(|e| touched_nodes(next, e))
     else {
-        return ops.apply_rows(Which::K, x_rows, w);
+        return ops.rows_product(Which::K, x_rows, w);
     };
-    let mut kx = Mat::<f64>::zeros(n, w);
+    // By rows, as `X` and `M X` are: every pass below streams through them.
+    let mut kx = vec![0.0; n * w];
+    for (out, m) in kx.chunks_exact_mut(w).zip(mx_rows.chunks_exact(w)) {
+        for &j in &related {
+            out[j] = lambda[j].expect("related") * m[j];
+        }
+    }
     // The columns multiplied out: guards, extra rigid modes, approximate modes.
     let exact: Vec<usize> = (fields..w).filter(|&j| lambda[j].is_none()).collect();
     if !exact.is_empty() {
@@ -68,15 +74,11 @@ pub(super) fn stiffness_images(
         let xe: Vec<f64> = (0..n * ne)
             .map(|k| x_rows[k / ne * w + exact[k % ne]])
             .collect();
-        let ke = ops.apply_rows(Which::K, &xe, ne);
-        for (c, &j) in exact.iter().enumerate() {
-            kx.col_mut(j).copy_from(ke.col(c));
-        }
-    }
-    for &j in &related {
-        let l = lambda[j].expect("related");
-        for i in 0..n {
-            kx[(i, j)] = l * mx[(i, j)];
+        let ke = ops.rows_product(Which::K, &xe, ne);
+        for (out, row) in kx.chunks_exact_mut(w).zip(ke.chunks_exact(ne)) {
+            for (&j, &v) in exact.iter().zip(row) {
+                out[j] = v;
+            }
         }
     }
     // The rows near the edit, multiplied out (every column, read by rows: a DOF's values side
@@ -89,8 +91,9 @@ pub(super) fn stiffness_images(
             add_block_product(&ops.k[b], &x_rows[col * w..(col + 3) * w], &mut acc);
         }
         for (r, a) in acc.chunks_exact(w).enumerate() {
+            let out = &mut kx[(3 * node + r) * w..(3 * node + r + 1) * w];
             for &j in &related {
-                kx[(3 * node + r, j)] = a[j];
+                out[j] = a[j];
             }
         }
     }
@@ -113,6 +116,7 @@ mod tests {
     use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
     use crate::fem::ElementKind;
     use crate::shape::{ops as shape_ops, primitives::Primitive, SubFill, VoxelFill, VoxelGrid};
+    use faer::{Mat, MatRef};
 
     /// `K X` by the relation against the whole product, for a stroke on a hollow sphere: a
     /// carried mode's difference is bounded by its residual in the previous solve (scaled by
@@ -169,9 +173,10 @@ mod tests {
             edited.as_ref(),
             &solution,
             &x_rows,
-            mx.as_ref(),
+            &crate::eigen::to_rows(mx.as_ref()),
             6,
         );
+        let got = MatRef::from_row_major_slice(&got, n, w);
         for j in 0..w {
             let (mut diff, mut norm) = (0.0f64, 0.0f64);
             for i in 0..n {
