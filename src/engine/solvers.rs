@@ -27,10 +27,13 @@ use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
 use crate::eigen::{ModeCount, Stop};
 use crate::fem::ElementCache;
 use crate::predictor::Predictor;
+use crate::shape::VoxelGrid;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 mod coarse;
+
+use coarse::{solve_coarse_grid, CoarsePlan};
 
 pub use coarse::{
     coarse_expected_error, coarse_grid, coarse_stiffening, grid_mirrors, mean_wall_voxels,
@@ -154,6 +157,36 @@ pub struct CoarseFemSolver {
     elements: SharedElements,
     kept: KeptAnswers,
     answers: AnswerSwitch,
+    /// What [`ModeSolver::applies`] found for the last object it offered an answer to, which
+    /// `solve` and `expected_error` then read instead of resampling and rescanning the grid
+    /// (on the large presets 3-5 ms for [`coarse_grid`] and 2-3 ms for the wall thickness,
+    /// each, before the first sound).
+    plan: Mutex<Option<CoarsePlan>>,
+}
+
+impl CoarseFemSolver {
+    fn new(
+        last: Shared,
+        elements: SharedElements,
+        kept: KeptAnswers,
+        answers: AnswerSwitch,
+    ) -> Self {
+        Self {
+            last,
+            elements,
+            kept,
+            answers,
+            plan: Mutex::new(None),
+        }
+    }
+
+    /// The plan for `grid`: the kept one where it was made for this grid, else a new one.
+    fn plan_for(plan: &mut Option<CoarsePlan>, grid: &VoxelGrid) -> Option<CoarsePlan> {
+        match plan.take() {
+            Some(p) if p.fine == *grid => Some(p),
+            _ => CoarsePlan::new(grid),
+        }
+    }
 }
 
 impl ModeSolver for CoarseFemSolver {
@@ -170,12 +203,20 @@ impl ModeSolver for CoarseFemSolver {
                 return false;
             }
         }
-        predicted_cold_ms(&r.grid, r.element, r.options.count) > PROGRESSIVE_BUDGET_MS
-            && coarse_grid(&r.grid).is_some()
+        if predicted_cold_ms(&r.grid, r.element, r.options.count) <= PROGRESSIVE_BUDGET_MS {
+            return false;
+        }
+        let mut plan = self.plan.lock().unwrap_or_else(|e| e.into_inner());
+        *plan = Self::plan_for(&mut plan, &r.grid);
+        plan.is_some()
     }
 
     fn expected_error(&self, r: &ObjectRequest) -> Option<f64> {
-        Some(coarse_expected_error(&r.grid))
+        let plan = self.plan.lock().unwrap_or_else(|e| e.into_inner());
+        Some(match plan.as_ref() {
+            Some(p) if p.fine == r.grid => p.expected_error,
+            _ => coarse_expected_error(&r.grid),
+        })
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
@@ -183,8 +224,12 @@ impl ModeSolver for CoarseFemSolver {
     }
 
     fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
-        solve_coarse(
-            &r.grid,
+        let plan = self.plan.get_mut().unwrap_or_else(|e| e.into_inner());
+        *plan = Self::plan_for(plan, &r.grid);
+        let p = plan.as_ref().ok_or(BasisError::NoCoarseGrid)?;
+        solve_coarse_grid(
+            &p.coarse,
+            p.stiffening,
             r.element,
             r.poisson_ratio,
             r.solver,
@@ -337,12 +382,12 @@ pub fn interactive_solvers(
             kept: kept.clone(),
             answers: answers.clone(),
         }),
-        None => Box::new(CoarseFemSolver {
-            last: exact.last.clone(),
-            elements: exact.elements.clone(),
-            kept: kept.clone(),
-            answers: answers.clone(),
-        }),
+        None => Box::new(CoarseFemSolver::new(
+            exact.last.clone(),
+            exact.elements.clone(),
+            kept.clone(),
+            answers.clone(),
+        )),
     };
     let carried = CarriedRitzSolver {
         last: exact.last.clone(),
@@ -361,6 +406,21 @@ mod tests {
     use crate::shape::primitives::Primitive;
     use crate::shape::VoxelGrid;
 
+    /// A hex27x2 request for the lowest `modes` modes of `grid`.
+    fn request(grid: VoxelGrid, poisson_ratio: f64, modes: usize) -> ObjectRequest {
+        ObjectRequest {
+            grid,
+            element: ElementKind::Hex27Blocks,
+            poisson_ratio,
+            solver: SolverKind::Auto,
+            options: EigenOptions {
+                count: ModeCount::First(modes),
+                ..EigenOptions::default()
+            },
+            recording: None,
+        }
+    }
+
     #[test]
     fn a_strokes_answers_reuse_the_cut_elements_of_the_last_exact_answer() {
         // The chain's wiring: the carried and exact answers to a stroke assemble from the
@@ -373,17 +433,7 @@ mod tests {
         }
         .rasterize(1.0, 1.0)
         .unwrap();
-        let request = |grid: VoxelGrid| ObjectRequest {
-            grid,
-            element: ElementKind::Hex27Blocks,
-            poisson_ratio: 0.24,
-            solver: SolverKind::Auto,
-            options: EigenOptions {
-                count: ModeCount::First(10),
-                ..EigenOptions::default()
-            },
-            recording: None,
-        };
+        let request = |grid: VoxelGrid| request(grid, 0.24, 10);
         let mut exact = IncrementalFemSolver::new();
         let mut carried = CarriedRitzSolver {
             last: exact.last.clone(),
@@ -470,5 +520,66 @@ mod tests {
             panic!("FEM")
         };
         assert!(Arc::ptr_eq(&a, &c));
+    }
+
+    #[test]
+    fn the_coarse_answer_reads_its_plan_only_for_the_object_it_was_made_for() {
+        // `applies` plans the coarse answer (the halved grid, its stiffening and expected
+        // error); `solve` and `expected_error` read the plan for that object and plan afresh
+        // for another. Truth: `solve_coarse` on each grid alone, bit for bit.
+        let request = |grid: VoxelGrid| request(grid, 0.24, 60);
+        // A 32-voxel glass bowl (predicted over the budget at 60 modes, a one-voxel wall) and
+        // a small solid sphere (thick: another expected error).
+        let large = request(
+            Primitive::Bowl {
+                diameter: 32.0,
+                wall: 1.0,
+            }
+            .rasterize_on_blocks(1.0, 1.0, 2)
+            .unwrap(),
+        );
+        let small = request(
+            Primitive::Sphere { diameter: 10.0 }
+                .rasterize_on_blocks(1.0, 1.0, 2)
+                .unwrap(),
+        );
+        let exact = IncrementalFemSolver::new();
+        let mut coarse = CoarseFemSolver::new(
+            exact.last.clone(),
+            exact.elements.clone(),
+            exact.kept.clone(),
+            AnswerSwitch::default(),
+        );
+        assert!(coarse.applies(&large));
+        let alone = |r: &ObjectRequest| {
+            solve_coarse(
+                &r.grid,
+                r.element,
+                r.poisson_ratio,
+                r.solver,
+                &r.options,
+                None,
+                Stop::NEVER,
+            )
+            .unwrap()
+            .solution
+            .eigenvalues
+        };
+        let played = |m: ObjectModes| match m {
+            ObjectModes::Fem(b) => b.solution.eigenvalues.clone(),
+            _ => panic!("FEM"),
+        };
+        // The planned object, then another without `applies` (the plan is not its own).
+        assert_eq!(played(coarse.solve(&large).unwrap()), alone(&large));
+        assert_eq!(
+            coarse.expected_error(&large),
+            Some(COARSE_THIN_EXPECTED_ERROR)
+        );
+        assert_eq!(played(coarse.solve(&small).unwrap()), alone(&small));
+        assert_eq!(
+            coarse.expected_error(&small),
+            Some(coarse_expected_error(&small.grid))
+        );
+        assert_eq!(coarse.expected_error(&small), Some(COARSE_EXPECTED_ERROR));
     }
 }

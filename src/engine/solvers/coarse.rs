@@ -104,7 +104,11 @@ pub const THIN_WALL_VOXELS: f64 = 1.1;
 
 /// The coarse answer's expected error for `grid` (see [`COARSE_EXPECTED_ERROR`]).
 pub fn coarse_expected_error(grid: &VoxelGrid) -> f64 {
-    if mean_wall_voxels(grid) <= THIN_WALL_VOXELS {
+    expected_error_of_wall(mean_wall_voxels(grid))
+}
+
+fn expected_error_of_wall(wall_voxels: f64) -> f64 {
+    if wall_voxels <= THIN_WALL_VOXELS {
         COARSE_THIN_EXPECTED_ERROR
     } else {
         COARSE_EXPECTED_ERROR
@@ -139,7 +143,11 @@ const COARSE_ELEMENT_VOXELS: f64 = 4.0;
 /// modes (a shell's stretching modes stiffen less than its bending ones), which
 /// [`coarse_expected_error`] states.
 pub fn coarse_stiffening(grid: &VoxelGrid) -> f64 {
-    let wall_voxels = mean_wall_voxels(grid).max(0.5);
+    stiffening_of_wall(mean_wall_voxels(grid))
+}
+
+fn stiffening_of_wall(wall_voxels: f64) -> f64 {
+    let wall_voxels = wall_voxels.max(0.5);
     let locking =
         1.0 / (wall_voxels * wall_voxels) - 1.0 / (COARSE_ELEMENT_VOXELS * COARSE_ELEMENT_VOXELS);
     1.0 + COARSE_STIFFENING_CONSTANT * locking.max(0.0)
@@ -161,9 +169,62 @@ pub fn solve_coarse(
     elements: Option<&mut ElementCache>,
     stop: Stop,
 ) -> Result<ModeBasis, BasisError> {
-    let coarse = coarse_grid(grid).ok_or(BasisError::NoCoarseGrid)?;
+    let plan = CoarsePlan::new(grid).ok_or(BasisError::NoCoarseGrid)?;
+    solve_coarse_grid(
+        &plan.coarse,
+        plan.stiffening,
+        element,
+        poisson_ratio,
+        solver,
+        options,
+        elements,
+        stop,
+    )
+}
+
+/// What the coarse answer needs of an object, found once ([`super::CoarseFemSolver`] keeps it
+/// from `applies` to `solve`): the object, its [`coarse_grid`], its [`coarse_stiffening`] and
+/// its [`coarse_expected_error`] (the last two from one wall-thickness scan).
+pub(super) struct CoarsePlan {
+    /// The object (to tell whether a request is the one planned for).
+    pub fine: VoxelGrid,
+    /// The object at half the resolution.
+    pub coarse: VoxelGrid,
+    /// [`coarse_stiffening`] of `fine`.
+    pub stiffening: f64,
+    /// [`coarse_expected_error`] of `fine`.
+    pub expected_error: f64,
+}
+
+impl CoarsePlan {
+    /// `None` where [`coarse_grid`] gives none.
+    pub fn new(grid: &VoxelGrid) -> Option<Self> {
+        let coarse = coarse_grid(grid)?;
+        let wall_voxels = mean_wall_voxels(grid);
+        Some(Self {
+            fine: grid.clone(),
+            coarse,
+            stiffening: stiffening_of_wall(wall_voxels),
+            expected_error: expected_error_of_wall(wall_voxels),
+        })
+    }
+}
+
+/// [`solve_coarse`] of a grid already halved (`coarse`), its frequencies divided by
+/// `stiffening` (the fine grid's [`coarse_stiffening`]).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_coarse_grid(
+    coarse: &VoxelGrid,
+    stiffening: f64,
+    element: ElementKind,
+    poisson_ratio: f64,
+    solver: SolverKind,
+    options: &EigenOptions,
+    elements: Option<&mut ElementCache>,
+    stop: Stop,
+) -> Result<ModeBasis, BasisError> {
     let mut basis = ModeBasis::solve_cached(
-        &coarse,
+        coarse,
         element,
         poisson_ratio,
         solver,
@@ -171,7 +232,7 @@ pub fn solve_coarse(
         elements,
         stop,
     )?;
-    let eigenvalue_ratio = coarse_stiffening(grid).powi(2);
+    let eigenvalue_ratio = stiffening * stiffening;
     for lambda in &mut basis.solution.eigenvalues {
         *lambda /= eigenvalue_ratio;
     }
