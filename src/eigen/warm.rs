@@ -225,8 +225,8 @@ pub fn solve(
     }
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(next, shift, Par::Seq)?;
-    let old_vectors = previous_columns(previous_solution, usize::MAX);
-    let carried = transfer(previous, old_vectors.as_ref(), next, offset);
+    let (old_rows, w) = previous_rows(previous_solution, usize::MAX);
+    let carried = transfer_rows(previous, &old_rows, w, next, offset, 0);
     let fields = extra_rigid(previous_solution).ncols() == 0;
     let start = start_block(next, &carried, m, fields);
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -375,8 +375,7 @@ pub fn ritz(
             }
         }
     }
-    let residuals = vec![f64::NAN; want];
-    let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, residuals[j])).collect();
+    let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, f64::NAN)).collect();
     let sel = select(&ops, &pairs, ModeCount::First(count));
     if sel.rigid != previous_solution.rigid_modes {
         // The stroke joined or split parts: the carried modes cannot describe it.
@@ -529,20 +528,10 @@ fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
     }
 }
 
-/// The columns a warm start carries: the extra rigid modes (if any, [`extra_rigid`]), the
-/// modes, and at most `guards` guard vectors.
-fn previous_columns(previous: &EigenSolution, guards: usize) -> Mat<f64> {
-    let guards = previous.guard_vectors.ncols().min(guards);
-    let modes = concat_columns(
-        previous.vectors.as_ref(),
-        previous.guard_vectors.get(.., ..guards),
-    );
-    concat_columns(extra_rigid(previous), modes.as_ref())
-}
-
-/// [`previous_columns`] by rows (`out[i * w + j]`, the layout [`transfer_rows`] reads), and
-/// their number `w`: one pass over the previous solution in tiles of rows, where
-/// [`previous_columns`] then [`to_rows`] copied each column twice.
+/// The columns a warm start carries, by rows (`out[i * w + j]`, the layout [`transfer_rows`]
+/// reads), and their number `w`: the extra rigid modes (if any, [`extra_rigid`]), the modes,
+/// and at most `guards` guard vectors. One pass over the previous solution in tiles of rows
+/// (a column-by-column copy and then a transposition took twice the time).
 fn previous_rows(previous: &EigenSolution, guards: usize) -> (Vec<f64>, usize) {
     const TILE_ROWS: usize = 64;
     let guards = previous.guard_vectors.ncols().min(guards);
@@ -568,17 +557,6 @@ fn previous_rows(previous: &EigenSolution, guards: usize) -> (Vec<f64>, usize) {
         }
     }
     (out, w)
-}
-
-/// `[a | b]`.
-fn concat_columns(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    Mat::from_fn(a.nrows(), a.ncols() + b.ncols(), |i, j| {
-        if j < a.ncols() {
-            a[(i, j)]
-        } else {
-            b[(i, j - a.ncols())]
-        }
-    })
 }
 
 /// `[rigid fields (if `fields`) | carried modes and guards | random guards]`, row-major

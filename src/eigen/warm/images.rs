@@ -29,7 +29,7 @@ use std::collections::HashSet;
 pub(super) const RELATION_MAX_RESIDUAL: f64 = 1e-6;
 
 /// `K X` on `next` for the instant answer's block `X` (`n x w`, given by rows: `x_rows[i * w +
-/// j]`; `fields` rigid fields, then the carried columns of [`super::previous_columns`]), given
+/// j]`; `fields` rigid fields, then the carried columns of [`super::previous_rows`]), given
 /// `M X` (`mx_rows`, by rows) and the cells
 /// the edit changed ([`super::edited_cells`]), by rows. See the module docs; the whole product
 /// where the edit is too large to tell apart (`edited` is `None`).
@@ -146,8 +146,8 @@ mod tests {
         edit(&mut after);
         let next = FemModel::assemble(&after, kind, 0.24).unwrap();
         let (offset, _) = super::super::align(&previous, &next);
-        let old = super::super::previous_columns(&solution, 8);
-        let carried = super::super::transfer(&previous, old.as_ref(), &next, offset);
+        let (old, w_old) = super::super::previous_rows(&solution, 8);
+        let carried = super::super::transfer_rows(&previous, &old, w_old, &next, offset, 0);
         let ops = Operators::new(&next);
         let n = next.dofs();
         let rigid = rigid_fields(&next);
