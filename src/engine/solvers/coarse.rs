@@ -87,14 +87,16 @@ pub fn grid_mirrors(grid: &VoxelGrid, element: ElementKind) -> usize {
 /// The coarse answer's expected error on objects whose walls are thicker than
 /// [`THIN_WALL_VOXELS`], for the status line ([`coarse_expected_error`]): the 90th percentile
 /// over objects of the mean relative error of the lowest 10 frequencies (after
-/// [`coarse_stiffening`] is divided out). Measured on 31 random primitives with 1.5-3-voxel
-/// walls that the stiffening law was not fitted on (a temporary harness, hex27x2): 3.9 %, mean
-/// 2.7 % (6.3 % and 3.9 % before the correction); a 24^3 sphere 0.0 %.
+/// [`coarse_stiffening`] is divided out). Measured on the 31 of 60 random primitives (that the
+/// stiffening law was not fitted on; a temporary harness, hex27x2) whose mean wall is over
+/// [`THIN_WALL_VOXELS`]: 4.0 %, mean 2.7 %, the worst a small hollow box with two-voxel walls
+/// 11 % (8.0 %, 3.9 % and 13 % before the correction); a 24^3 sphere 0.0 %.
 pub const COARSE_EXPECTED_ERROR: f64 = 0.04;
 
 /// [`COARSE_EXPECTED_ERROR`] for walls at most [`THIN_WALL_VOXELS`] thick. The same
-/// measurement, 29 objects with one-voxel walls: 6.9 %, mean 3.5 %, the worst a small hollow
-/// box 11 % (16.7 %, 11.1 % and 21 % before the correction, when the status line said 15 %).
+/// measurement, the other 29 (one-voxel walls and a few of 1.5 voxels): 6.9 %, mean 3.5 %, the
+/// worst an 8-voxel tube 11 % (16.3 %, 11.1 % and 21 % before the correction, when the status
+/// line said 15 %).
 pub const COARSE_THIN_EXPECTED_ERROR: f64 = 0.07;
 
 /// Mean wall thickness ([`mean_wall_voxels`]) at or under which [`coarse_expected_error`]
@@ -136,9 +138,10 @@ const COARSE_ELEMENT_VOXELS: f64 = 4.0;
 /// thin wall stiffly: the spurious stiffness of a thin wall in displacement elements `h` wide
 /// grows as `(h / t)^2` against its bending stiffness (shear locking: a Timoshenko beam
 /// element's shear stiffness over its bending stiffness goes as `(h / t)^2`), hence the law's
-/// form. Measured, the lowest 10 coarse frequencies of one-voxel walls came out 8-29 % high
-/// (flat plates and discs 8 %, curved shells 10-17 %, hollow boxes up to 29 %), two-voxel
-/// walls 1-5 % (hollow boxes 10 %), a 24^3 solid sphere within 0.1 %: systematic, so
+/// form. Measured (120 random primitives), the lowest 10 coarse frequencies of one-voxel
+/// walls came out 8-24 % high on average (flat plates and discs 8-10 %, curved shells 10-21 %,
+/// hollow boxes 12-24 %), two-voxel walls 1-5 % (hollow boxes 5-13 %), a 24^3 solid sphere
+/// within 0.1 %: systematic, so
 /// [`solve_coarse`] divides it out. What is left is the spread between shapes and between
 /// modes (a shell's stretching modes stiffen less than its bending ones), which
 /// [`coarse_expected_error`] states.
