@@ -172,10 +172,10 @@ pub fn solve_coarse(
     elements: Option<&mut ElementCache>,
     stop: Stop,
 ) -> Result<ModeBasis, BasisError> {
-    let plan = CoarsePlan::new(grid).ok_or(BasisError::NoCoarseGrid)?;
+    let coarse = coarse_grid(grid).ok_or(BasisError::NoCoarseGrid)?;
     solve_coarse_grid(
-        &plan.coarse,
-        plan.stiffening,
+        &coarse,
+        coarse_stiffening(grid),
         element,
         poisson_ratio,
         solver,
