@@ -173,6 +173,13 @@ pub struct EigenSolution {
     /// a warm start of the next edit starts its guard columns from them ([`warm`]), so the
     /// highest wanted modes converge as fast as the lowest.
     pub guard_vectors: Mat<f64>,
+    /// Each guard vector's eigenvalue where it is a converged eigenpair too (solved to the
+    /// solve's tolerance, beyond the request: a symmetry class's modes above the lowest `k`),
+    /// `NaN` where it is a Ritz vector only: the instant answer takes a converged guard's
+    /// products from its eigen relation instead of multiplying it out ([`warm`]).
+    pub guard_eigenvalues: Vec<f64>,
+    /// The same guards' residuals (eq. 6), `NaN` where not converged.
+    pub guard_residuals: Vec<f64>,
     /// The rigid-body modes found (M-orthonormal, one column each; `rigid_modes` of them): a
     /// warm start carries them for objects whose parts touch only along edges or corners,
     /// which have more than the six rigid motions of a whole.
@@ -393,6 +400,13 @@ pub(crate) fn solution(
         .ncols()
         .saturating_sub(after)
         .min(warm_guard(selection.rigid + keep.len()));
+    // The guards that are converged pairs (beyond the request) keep their eigenvalues.
+    let guard_pairs: Vec<(f64, f64)> = (after..after + guards)
+        .map(|c| {
+            let pair = pairs.iter().find(|p| p.1 == c);
+            pair.map_or((f64::NAN, f64::NAN), |p| (p.0, p.2))
+        })
+        .collect();
     // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
     let rigid_columns: Vec<usize> = pairs.iter().take(selection.rigid).map(|p| p.1).collect();
     EigenSolution {
@@ -400,6 +414,8 @@ pub(crate) fn solution(
             x[(i, rigid_columns[j])]
         }),
         guard_vectors: x.get(.., after..after + guards).to_owned(),
+        guard_eigenvalues: guard_pairs.iter().map(|p| p.0).collect(),
+        guard_residuals: guard_pairs.iter().map(|p| p.1).collect(),
         eigenvalues: keep.iter().map(|&i| pairs[i].0).collect(),
         vectors: Mat::from_fn(x.nrows(), keep.len(), |i, j| x[(i, pairs[keep[j]].1)]),
         residuals: keep.iter().map(|&i| pairs[i].2).collect(),

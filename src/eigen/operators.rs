@@ -54,6 +54,24 @@ impl<'a> Operators<'a> {
         Self::from_parts(&model.pattern, &model.k, &model.m)
     }
 
+    /// Views a model's matrices for products and the rigid-mode test only: the infinity norms
+    /// (a pass over every block of `K`, 6 ms on a 30k-DOF model) are left `NaN`, for a caller
+    /// that reports no residuals (the instant carried answer, [`super::warm::ritz`]).
+    pub fn without_norms(model: &'a FemModel) -> Self {
+        let (p, k, m) = (&model.pattern, &model.k[..], &model.m[..]);
+        Operators {
+            pattern: p,
+            k,
+            m,
+            mass_diagonal: None,
+            mass_extra: &[],
+            absent: &[],
+            k_norm: f64::NAN,
+            m_norm: f64::NAN,
+            scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
+        }
+    }
+
     /// Views `K` and `M` given as node blocks on one pattern.
     pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
         Operators {

@@ -535,6 +535,14 @@ fn combine(
     let own_guards = (sources.iter().zip(&from_guards))
         .map(|(l, &take)| (l, l.solution.guard_vectors.get(.., 0..take)));
     write_blocks(&mut guard_vectors, extra.len(), own_guards);
+    // Their eigenvalues and residuals: the pairs above the request are converged; a class's
+    // own guards are where its solve says.
+    let (mut guard_eigenvalues, mut guard_residuals): (Vec<f64>, Vec<f64>) =
+        extra.iter().map(|p| (p.0, p.3)).unzip();
+    for (l, &take) in sources.iter().zip(&from_guards) {
+        guard_eigenvalues.extend_from_slice(&l.solution.guard_eigenvalues[..take]);
+        guard_residuals.extend_from_slice(&l.solution.guard_residuals[..take]);
+    }
     let rigid_count = sources
         .iter()
         .map(|l| l.solution.rigid_vectors.ncols())
@@ -554,6 +562,8 @@ fn combine(
         solver: SolverKind::Lanczos,
         warm_start: false,
         guard_vectors,
+        guard_eigenvalues,
+        guard_residuals,
         rigid_vectors,
     }
 }

@@ -6,8 +6,8 @@
 //! - [`ritz`], the instant one ([`crate::basis::ModeBasis::carried_ritz`], played by the
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
 //!   relaxed near the edit (`warm/correction.rs`: only that small patch is factored, never
-//!   the object) and re-balanced by one Rayleigh-Ritz step, their stiffness images from the
-//!   eigen relation away from the edit (`warm/images.rs`);
+//!   the object) and re-balanced by one Rayleigh-Ritz step, whose Gram matrices are the previous
+//!   solve's updated near the edit (`warm/grams.rs`);
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
@@ -32,14 +32,14 @@
 //!    the iterations spent.
 
 mod correction;
-mod images;
+mod grams;
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
 use super::lobpcg::{self, rigid_fields};
 use super::{
-    random_block, select, solution, to_rows, EigenError, EigenOptions, EigenSolution, ModeCount,
-    Operators, SolveTimings, SolverKind,
+    random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
+    SolveTimings, SolverKind,
 };
 use crate::fem::FemModel;
 use faer::{Mat, MatRef, Par};
@@ -124,63 +124,114 @@ pub fn transfer(
     next: &FemModel,
     offset: [i64; 3],
 ) -> Transferred {
-    transfer_rows(
-        previous,
-        &to_rows(vectors),
-        vectors.ncols(),
-        next,
-        offset,
-        0,
-    )
+    let map = node_map(previous, next, offset);
+    let columns: Vec<&[f64]> = (0..vectors.ncols())
+        .map(|j| column_slice(vectors, j))
+        .collect();
+    transfer_rows(previous, &columns, next, offset, &map, 0)
 }
 
-/// [`transfer`] of the previous vectors given by rows (`old_rows[i * w + j]`, as
-/// [`previous_rows`] gives them), into a block of `lead + w` columns whose first `lead` are
-/// left zero for the caller (the instant answer's rigid fields): one pass and one buffer.
-fn transfer_rows(
-    previous: &FemModel,
-    old_rows: &[f64],
-    w: usize,
-    next: &FemModel,
+/// Column `j` of a matrix with unit row stride, as a slice.
+fn column_slice(m: MatRef<'_, f64>, j: usize) -> &[f64] {
+    m.col(j)
+        .try_as_col_major()
+        .expect("solution matrices are column-major")
+        .as_slice()
+}
+
+/// Each node of `next` that existed in `previous` (the voxel offset `offset` from [`align`]
+/// applied): its previous node number, `u32::MAX` for a new node.
+fn node_map(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Vec<u32> {
+    let lattice = PreviousLattice::new(previous, next, offset);
+    (0..next.nodes())
+        .map(|node| {
+            let q = lattice.place(next, node);
+            lattice.node(q).map_or(u32::MAX, |o| o as u32)
+        })
+        .collect()
+}
+
+/// The previous model's lattice as the new one sees it.
+struct PreviousLattice<'a> {
+    previous: &'a FemModel,
+    /// Lattice points per element along an axis, as `i64`.
+    order: i64,
     offset: [i64; 3],
-    lead: usize,
-) -> Transferred {
-    let p = next.kind.order() as i64;
-    let n = next.dofs();
-    let width = lead + w;
-    let mut block = vec![0.0; n * width];
-    let old_row = |o: usize, c: usize| &old_rows[(3 * o + c) * w..(3 * o + c + 1) * w];
-    let [plx, ply, plz] = previous.lattice.map(|v| v as i64);
-    let old_node = |q: [i64; 3]| -> Option<usize> {
+}
+
+impl<'a> PreviousLattice<'a> {
+    fn new(previous: &'a FemModel, next: &FemModel, offset: [i64; 3]) -> Self {
+        PreviousLattice {
+            previous,
+            order: next.kind.order() as i64,
+            offset,
+        }
+    }
+
+    /// Where a node of `next` lies in the previous lattice.
+    fn place(&self, next: &FemModel, node: usize) -> [i64; 3] {
+        let here = next.node_lattice_coords(node);
+        [0, 1, 2].map(|a| here[a] + self.order * self.offset[a])
+    }
+
+    /// The previous node at lattice point `q`, if any.
+    fn node(&self, q: [i64; 3]) -> Option<usize> {
+        let [plx, ply, plz] = self.previous.lattice.map(|v| v as i64);
         if (0..3).any(|a| q[a] < 0) || q[0] >= plx || q[1] >= ply || q[2] >= plz {
             return None;
         }
-        let node = previous.lattice_node[(q[0] + plx * (q[1] + ply * q[2])) as usize];
+        let node = self.previous.lattice_node[(q[0] + plx * (q[1] + ply * q[2])) as usize];
         (node != u32::MAX).then_some(node as usize)
-    };
-    let (mut kept, mut fresh) = (0, 0);
-    for node in 0..next.nodes() {
-        let here = next.node_lattice_coords(node);
-        let q = [0, 1, 2].map(|a| here[a] + p * offset[a]);
-        let rows = &mut block[3 * node * width..3 * (node + 1) * width];
-        if let Some(o) = old_node(q) {
-            kept += 1;
-            for (c, row) in rows.chunks_exact_mut(width).enumerate() {
-                row[lead..].copy_from_slice(old_row(o, c));
+    }
+}
+
+/// [`transfer`] of the previous vectors `columns` (each over the previous model's DOFs) into
+/// a block by rows of `lead + columns.len()` columns whose first `lead` are left zero for the
+/// caller (the instant answer's rigid fields): one pass, read in place. `map` is
+/// [`node_map`]'s. The kept nodes go in tiles of [`TILE_NODES`], column by column: each
+/// column is read in order and the tile's rows stay in cache (reading a node's values across
+/// all columns at once, or copying the columns by rows first, took longer).
+fn transfer_rows(
+    previous: &FemModel,
+    columns: &[&[f64]],
+    next: &FemModel,
+    offset: [i64; 3],
+    map: &[u32],
+    lead: usize,
+) -> Transferred {
+    let n = next.dofs();
+    let width = lead + columns.len();
+    let mut block = vec![0.0; n * width];
+    for start in (0..map.len()).step_by(TILE_NODES) {
+        let tile = &map[start..(start + TILE_NODES).min(map.len())];
+        for (j, column) in columns.iter().enumerate() {
+            for (t, &old) in tile.iter().enumerate() {
+                if old == u32::MAX {
+                    continue;
+                }
+                let (src, dst) = (3 * old as usize, 3 * (start + t) * width + lead + j);
+                block[dst] = column[src];
+                block[dst + width] = column[src + 1];
+                block[dst + 2 * width] = column[src + 2];
             }
-            continue;
         }
+    }
+    // A new node: the mean of its persisting lattice neighbours.
+    let lattice = PreviousLattice::new(previous, next, offset);
+    let mut fresh = 0;
+    for (node, _) in map.iter().enumerate().filter(|(_, &o)| o == u32::MAX) {
         fresh += 1;
+        let rows = &mut block[3 * node * width..3 * (node + 1) * width];
+        let q = lattice.place(next, node);
         let mut count = 0.0;
         for d in 0..27i64 {
             let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
-            if let Some(o) = old_node([0, 1, 2].map(|a| q[a] + step[a])) {
+            if let Some(o) = lattice.node([0, 1, 2].map(|a| q[a] + step[a])) {
                 count += 1.0;
                 for (c, row) in rows.chunks_exact_mut(width).enumerate() {
-                    row[lead..]
-                        .iter_mut()
-                        .zip(old_row(o, c))
-                        .for_each(|(r, v)| *r += v);
+                    for (r, column) in row[lead..].iter_mut().zip(columns) {
+                        *r += column[3 * o + c];
+                    }
                 }
             }
         }
@@ -193,10 +244,13 @@ fn transfer_rows(
     Transferred {
         block,
         columns: width,
-        kept_nodes: kept,
+        kept_nodes: map.len() - fresh,
         new_nodes: fresh,
     }
 }
+
+/// Nodes per tile of [`transfer_rows`].
+const TILE_NODES: usize = 32;
 
 /// Solves `next` for `options.count` (the lowest `k` modes; "modes below a bound" is solved
 /// cold) starting from `previous`'s solution carried over by [`transfer`] (see the module
@@ -225,8 +279,9 @@ pub fn solve(
     }
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(next, shift, Par::Seq)?;
-    let (old_rows, w) = previous_rows(previous_solution, usize::MAX);
-    let carried = transfer_rows(previous, &old_rows, w, next, offset, 0);
+    let columns = previous_columns(previous_solution, usize::MAX);
+    let map = node_map(previous, next, offset);
+    let carried = transfer_rows(previous, &columns, next, offset, &map, 0);
     let fields = extra_rigid(previous_solution).ncols() == 0;
     let start = start_block(next, &carried, m, fields);
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -274,8 +329,9 @@ pub fn solve(
 
 /// The instant answer to an edit: Rayleigh-Ritz of the new `K`, `M` on the previous modes
 /// carried to the new mesh (with the rigid fields and the carried guard vectors), with no
-/// factorisation and no iteration: two block products and a dense eigenproblem the size of
-/// the block. A Ritz value's error is second order in its vector's error (Parlett, *The
+/// factorisation and no iteration: Gram matrices mostly known from the previous solve
+/// (`warm/grams.rs`), one product of the block with the Ritz coefficients, and a dense
+/// eigenproblem the size of the block. A Ritz value's error is second order in its vector's error (Parlett, *The
 /// Symmetric Eigenvalue Problem*, Thm. 11.7.1), so after a brush stroke the frequencies are
 /// within about 1e-5 of exact (`cargo bench --bench interactive`); the vectors' residuals
 /// are far above the solver tolerance (1e-4 measured, `tests/warm_start.rs`), so this answer
@@ -289,8 +345,10 @@ pub fn ritz(
     count: usize,
 ) -> Result<EigenSolution, EigenError> {
     let t0 = Instant::now();
-    let ops = Operators::new(next);
-    let (old_rows, cc) = previous_rows(previous_solution, RITZ_GUARDS);
+    // No norms: this answer reports no residuals.
+    let ops = Operators::without_norms(next);
+    let columns = previous_columns(previous_solution, RITZ_GUARDS);
+    let cc = columns.len();
     let n = ops.dofs();
     // The exact rigid fields, unless the previous rigid modes (more than six) are carried.
     let fields = if extra_rigid(previous_solution).ncols() > 0 {
@@ -307,46 +365,48 @@ pub fn ritz(
     }
     // The block by rows: the carried columns after `fields` leading ones, which take the
     // rigid fields.
-    let mut x_rows = transfer_rows(previous, &old_rows, cc, next, offset, fields).block;
-    drop(old_rows);
+    let map = node_map(previous, next, offset);
+    let mut x_rows = transfer_rows(previous, &columns, next, offset, &map, fields).block;
     if fields > 0 {
         let rigid = rigid_fields(next);
         for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
             row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
         }
     }
-    // `X` and `M X` are read in place, by rows (a transposed copy of either cost ~3 ms).
     let x = MatRef::from_row_major_slice(&x_rows, n, w);
     let edited = edited_cells(previous, next, offset);
-    let mx_rows = ops.rows_product(super::Which::M, &x_rows, w);
-    let mx = MatRef::from_row_major_slice(&mx_rows, n, w);
-    let kx_rows = images::stiffness_images(
+    let patch = edited.as_ref().and_then(|e| edit_patch(next, e));
+    let extra = extra_rigid(previous_solution).ncols();
+    let lambda = grams::relations(previous_solution, extra, cc);
+    let old = grams::Previous {
+        model: previous,
+        columns: &columns,
+        lambda: &lambda,
+    };
+    let grams::Grams {
+        k: mut gk,
+        m: mut gm,
+        k_rows,
+        m_rows,
+    } = grams::grams(
         &ops,
         next,
         edited.as_ref(),
-        previous_solution,
+        &old,
+        &map,
         &x_rows,
-        &mx_rows,
         fields,
+        patch.as_deref().unwrap_or(&[]),
     );
-    let kx = MatRef::from_row_major_slice(&kx_rows, n, w);
-    // (`X^T K X` is symmetric but for the carried modes' residuals, which `images` leaves in
-    // `K X`: one triangle of it serves.)
-    let mut gk = gram(x, kx);
-    let mut gm = gram(x, mx);
-    let correction = edited
-        .as_ref()
-        .and_then(|e| edit_patch(next, e))
-        .and_then(|p| {
-            let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
-            correction::local_correction(&ops, next, &p, &theta, kx, mx)
-        });
+    let correction = patch.as_ref().and_then(|p| {
+        let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
+        correction::local_correction(&ops, next, p, &theta, k_rows.as_ref(), m_rows.as_ref())
+    });
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
         // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
-        let rows = |a: MatRef<'_, f64>| Mat::from_fn(cor.dofs.len(), w, |i, j| a[(cor.dofs[i], j)]);
-        let grow = |g: &Mat<f64>, a: MatRef<'_, f64>, ad: &Mat<f64>| {
-            let cross = rows(a).transpose() * &cor.delta;
+        let grow = |g: &Mat<f64>, a_rows: &Mat<f64>, ad: &Mat<f64>| {
+            let cross = a_rows.transpose() * &cor.delta;
             let dd = cor.delta.transpose() * ad;
             let s = w + cor.delta.ncols();
             Mat::from_fn(s, s, |i, j| match (i < w, j < w) {
@@ -356,8 +416,8 @@ pub fn ritz(
                 (false, false) => dd[(i - w, j - w)],
             })
         };
-        gk = grow(&gk, kx, &cor.k_delta);
-        gm = grow(&gm, mx, &cor.m_delta);
+        gk = grow(&gk, &k_rows, &cor.k_delta);
+        gm = grow(&gm, &m_rows, &cor.m_delta);
     }
     let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
@@ -399,12 +459,14 @@ pub fn ritz(
     out.warm_start = true;
     // An approximate answer is never a warm start itself.
     out.guard_vectors = Mat::zeros(n, 0);
+    out.guard_eigenvalues.clear();
+    out.guard_residuals.clear();
     Ok(out)
 }
 
 /// `out += A s` for one node block `A` (3x3, row-major) and the by-rows values of one node
 /// `s` (three DOF rows of `w` columns side by side; `out` likewise): the inner step of the
-/// products over a few node rows (`images`).
+/// products over a few node rows (`grams`).
 fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
     let w = s.len() / 3;
     if w == 0 {
@@ -418,31 +480,6 @@ fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
             o[j] += a0 * s0[j] + a1 * s1[j] + a2 * s2[j];
         }
     }
-}
-
-/// The symmetric Gram matrix `X^T Y` (`Y = A X` for a symmetric `A`) from its lower triangle
-/// alone: half the work of the whole product.
-fn gram(x: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
-    use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-    let w = x.ncols();
-    let mut g = Mat::<f64>::zeros(w, w);
-    matmul(
-        g.as_mut(),
-        BlockStructure::TriangularLower,
-        faer::Accum::Replace,
-        x.transpose(),
-        BlockStructure::Rectangular,
-        y,
-        BlockStructure::Rectangular,
-        1.0,
-        Par::Seq,
-    );
-    for j in 0..w {
-        for i in 0..j {
-            g[(i, j)] = g[(j, i)];
-        }
-    }
-    g
 }
 
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
@@ -528,35 +565,19 @@ fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
     }
 }
 
-/// The columns a warm start carries, by rows (`out[i * w + j]`, the layout [`transfer_rows`]
-/// reads), and their number `w`: the extra rigid modes (if any, [`extra_rigid`]), the modes,
-/// and at most `guards` guard vectors. One pass over the previous solution in tiles of rows
-/// (a column-by-column copy and then a transposition took twice the time).
-fn previous_rows(previous: &EigenSolution, guards: usize) -> (Vec<f64>, usize) {
-    const TILE_ROWS: usize = 64;
+/// The columns a warm start carries, in place: the extra rigid modes (if any,
+/// [`extra_rigid`]), the modes, and at most `guards` guard vectors.
+fn previous_columns(previous: &EigenSolution, guards: usize) -> Vec<&[f64]> {
     let guards = previous.guard_vectors.ncols().min(guards);
     let parts = [
         extra_rigid(previous),
         previous.vectors.as_ref(),
         previous.guard_vectors.get(.., ..guards),
     ];
-    let n = previous.vectors.nrows();
-    let w: usize = parts.iter().map(|m| m.ncols()).sum();
-    let mut out = vec![0.0; n * w];
-    for start in (0..n).step_by(TILE_ROWS) {
-        let end = (start + TILE_ROWS).min(n);
-        let mut at = 0;
-        for part in &parts {
-            for j in 0..part.ncols() {
-                let column = part.col(j);
-                for i in start..end {
-                    out[i * w + at + j] = column[i];
-                }
-            }
-            at += part.ncols();
-        }
-    }
-    (out, w)
+    parts
+        .into_iter()
+        .flat_map(|part| (0..part.ncols()).map(move |j| column_slice(part, j)))
+        .collect()
 }
 
 /// `[rigid fields (if `fields`) | carried modes and guards | random guards]`, row-major

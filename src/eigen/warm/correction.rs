@@ -2,7 +2,7 @@
 //! vectors on a patch of nodes around the edited cells, and their images `K D`, `M D` on it.
 //!
 //! Where it sits: inside [`super::ritz`], after the Gram matrices of the carried block `X`
-//! (and its images `K X`, `M X`) and before the Rayleigh-Ritz step on `[X, D]`. For each
+//! (and its images `K X`, `M X` on the patch) and before the Rayleigh-Ritz step on `[X, D]`. For each
 //! column `x` with Rayleigh quotient `theta`, `d = -K_pp^-1 (K x - theta M x)_p` on the patch
 //! nodes `p`, the rest held fixed: a Dirichlet problem, one block-Jacobi step of the subdomain
 //! around the edit, as in Schwarz methods. A stroke changes the stress near it; without this
@@ -34,8 +34,9 @@ pub(super) struct Correction {
 }
 
 /// The corrections of the columns of `x` (`n x w`) on the nodes `patch`, given their images
-/// `kx`, `mx` and Rayleigh quotients `theta`. `None` if `K_pp` is not positive definite (the
-/// patch is a whole part of the object).
+/// on the patch's DOF rows (`kx`, `mx`: `3 p x w`, three rows per patch node in patch order)
+/// and their Rayleigh quotients `theta`. `None` if `K_pp` is not positive definite (the patch
+/// is a whole part of the object).
 pub(super) fn local_correction(
     ops: &Operators,
     model: &FemModel,
@@ -76,9 +77,7 @@ pub(super) fn local_correction(
         .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
         .collect();
     let w = kx.ncols();
-    let rhs = Mat::<f64>::from_fn(3 * np, w, |i, j| {
-        theta[j] * mx[(dofs[i], j)] - kx[(dofs[i], j)]
-    });
+    let rhs = Mat::<f64>::from_fn(3 * np, w, |i, j| theta[j] * mx[(i, j)] - kx[(i, j)]);
     let mut delta = rhs.clone();
     factor.solve_in_place(delta.as_mut());
     let mut correction = Correction {
@@ -160,8 +159,12 @@ mod tests {
                 ops.apply_block(Which::M, x.as_ref()),
             );
             let theta = vec![0.1; w];
+            let on_patch = |a: &Mat<f64>| {
+                Mat::from_fn(3 * patch.len(), w, |i, j| a[(3 * patch[i / 3] + i % 3, j)])
+            };
+            let (kp, mp) = (on_patch(&kx), on_patch(&mx));
             let cor =
-                local_correction(&ops, &model, &patch, &theta, kx.as_ref(), mx.as_ref()).unwrap();
+                local_correction(&ops, &model, &patch, &theta, kp.as_ref(), mp.as_ref()).unwrap();
             let pad = |d: &Mat<f64>| {
                 let mut full = Mat::<f64>::zeros(n, d.ncols());
                 for (i, &dof) in cor.dofs.iter().enumerate() {

@@ -1,0 +1,489 @@
+//! The instant answer's Gram matrices `X^T K X` and `X^T M X`, mostly from the previous solve's.
+//!
+//! Where it sits: inside [`super::ritz`], between [`super::transfer_rows`] (the carried block
+//! `X` on the edited mesh) and the relaxation near the edit (`warm/correction.rs`) and the
+//! Rayleigh-Ritz step. Before stop 61 the step formed `M X` and most of `K X` over the whole
+//! mesh (80 columns of 6k-30k DOFs) and both Gram matrices from them: on the ceramic cup
+//! preset, 42 of the 104 ms of its instant answer.
+//!
+//! The Gram matrices of the previous shape's modes are known without a product: they are its
+//! eigenvectors, `X'^T M' X' = I` and `X'^T K' X' = Lambda` to the previous solve's residual
+//! (Jin et al. 2022, eq. 6). A Gram matrix is a sum over rows, `X^T A X = sum_i x_i^T (A X)_i`,
+//! and a row whose elements the edit left alone (the same cells with the same fills, every node
+//! of them persisting with its carried values) is the same in both shapes. So for the carried
+//! modes
+//!
+//! `X^T A X = X'^T A' X' + sum_{i in T} x_i^T (A X)_i - sum_{o in T'} x'_o^T (A' X')_o`
+//!
+//! where `T` are the new nodes near the edit ([`touched_nodes`]: the nodes of every element
+//! within one cell of an edited cell, one cell more because a quadratic cut element's refined
+//! fill reads its neighbours' fills) and `T'` the previous nodes that no untouched new node
+//! carries (those of the edited cells and around them, and the nodes a removal dropped). Both
+//! sums are over a few hundred nodes. The columns that are no converged eigenvectors (the rigid
+//! fields, whose images `K r = 0` are exact, the carried guards and extra rigid modes, the modes
+//! of an approximate previous answer: a residual above [`RELATION_MAX_RESIDUAL`]) are multiplied
+//! out over the whole mesh, and their Gram rows with every column formed from those products.
+//!
+//! The error this leaves is the previous solve's residual: a relative error of about 1e-6 in
+//! the Gram matrices, three orders below what the carried answer is accurate to (1e-5 to 3e-3).
+
+use super::super::{EigenSolution, Operators, Which};
+use super::{add_block_product, nodes_near};
+use crate::fem::sparse::BlockPattern;
+use crate::fem::FemModel;
+use faer::{Mat, MatRef, Par};
+use std::collections::HashSet;
+
+/// A carried mode whose residual was at most this (the default solver tolerance) is taken as
+/// an eigenpair of the previous shape; above it (an approximate answer) it is multiplied out.
+pub(super) const RELATION_MAX_RESIDUAL: f64 = 1e-6;
+
+/// What the Rayleigh-Ritz step and the relaxation need of the block `X`.
+pub(super) struct Grams {
+    /// `X^T K X` (`w x w`, symmetric).
+    pub k: Mat<f64>,
+    /// `X^T M X`.
+    pub m: Mat<f64>,
+    /// `K X` on the rows of the requested nodes (three DOF rows per node, in the order given).
+    pub k_rows: Mat<f64>,
+    /// `M X` on the same rows.
+    pub m_rows: Mat<f64>,
+}
+
+/// The previous shape's side of an instant answer.
+pub(super) struct Previous<'a> {
+    /// The previous model.
+    pub model: &'a FemModel,
+    /// Its carried columns ([`super::previous_columns`]).
+    pub columns: &'a [&'a [f64]],
+    /// For each carried column, the eigenvalue whose relation stands for its products, or
+    /// `None` (multiplied out): see [`relations`].
+    pub lambda: &'a [Option<f64>],
+}
+
+/// For each of the `cc` carried columns of [`super::previous_rows`] (`extra` extra rigid
+/// modes, the modes, the guards), the previous eigenvalue of a mode or a guard that was solved
+/// to [`RELATION_MAX_RESIDUAL`], or `None`.
+pub(super) fn relations(previous: &EigenSolution, extra: usize, cc: usize) -> Vec<Option<f64>> {
+    let modes = previous.eigenvalues.len();
+    (0..cc)
+        .map(|j| {
+            let m = j.checked_sub(extra)?;
+            let (lambda, residual) = match m.checked_sub(modes) {
+                None => (previous.eigenvalues[m], previous.residuals[m]),
+                Some(g) => (
+                    *previous.guard_eigenvalues.get(g)?,
+                    *previous.guard_residuals.get(g)?,
+                ),
+            };
+            (residual <= RELATION_MAX_RESIDUAL).then_some(lambda)
+        })
+        .collect()
+}
+
+/// The Gram matrices of `X` (`n x w` by rows, its first `fields` columns the rigid fields) on
+/// `next`, and its images on the rows of `rows_at` (the relaxation's patch). `node_map` gives
+/// each new node's previous node (`u32::MAX` for a new one). By the previous solve's Grams
+/// where the edit is local (see the module docs), else by whole products. The rows of `K X`
+/// and `M X` on `rows_at` are multiplied out either way.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn grams(
+    ops: &Operators,
+    next: &FemModel,
+    edited: Option<&HashSet<[i64; 3]>>,
+    previous: &Previous,
+    node_map: &[u32],
+    x_rows: &[f64],
+    fields: usize,
+    rows_at: &[usize],
+) -> Grams {
+    let (n, w) = (ops.dofs(), x_rows.len() / ops.dofs().max(1));
+    let x = MatRef::from_row_major_slice(x_rows, n, w);
+    let new_blocks = Blocks::of(ops.pattern, ops.k, ops.m);
+    let lambda: Vec<Option<f64>> = (0..w)
+        .map(|j| j.checked_sub(fields).and_then(|c| previous.lambda[c]))
+        .collect();
+    let related: Vec<usize> = (0..w).filter(|&j| lambda[j].is_some()).collect();
+    let touched = edited
+        .filter(|_| !related.is_empty())
+        .and_then(|e| touched_nodes(next, e));
+    // The rows multiplied out on the new mesh: the patch's, then the touched nodes off it (for
+    // hex27x2 the two are the same nodes).
+    let mut near: Vec<usize> = rows_at.to_vec();
+    let mut place = vec![u32::MAX; next.nodes()];
+    rows_at
+        .iter()
+        .enumerate()
+        .for_each(|(i, &v)| place[v] = i as u32);
+    for &v in touched.iter().flatten() {
+        if place[v] == u32::MAX {
+            place[v] = near.len() as u32;
+            near.push(v);
+        }
+    }
+    let k_near = new_blocks.product(Which::K, &near, x_rows, w);
+    let m_near = new_blocks.product(Which::M, &near, x_rows, w);
+    let patch_rows = |a: &Mat<f64>| a.get(..3 * rows_at.len(), ..).to_owned();
+    let (k_rows, m_rows) = (patch_rows(&k_near), patch_rows(&m_near));
+    let Some(touched) = touched else {
+        // Whole products: the edit is not local, or nothing was converged.
+        let mx = ops.rows_product(Which::M, x_rows, w);
+        let kx = ops.rows_product(Which::K, x_rows, w);
+        return Grams {
+            k: gram(x, MatRef::from_row_major_slice(&kx, n, w)),
+            m: gram(x, MatRef::from_row_major_slice(&mx, n, w)),
+            k_rows,
+            m_rows,
+        };
+    };
+    // The columns multiplied out, and their Gram columns against every column.
+    let others: Vec<usize> = (0..w).filter(|&j| lambda[j].is_none()).collect();
+    let no = others.len();
+    let xo: Vec<f64> = (0..n * no)
+        .map(|k| x_rows[k / no * w + others[k % no]])
+        .collect();
+    let mo = ops.rows_product(Which::M, &xo, no);
+    // The rigid fields' images are zero.
+    let ko: Vec<f64> = if others.iter().all(|&j| j < fields) {
+        vec![0.0; n * no]
+    } else {
+        let mut ko = ops.rows_product(Which::K, &xo, no);
+        for row in ko.chunks_exact_mut(no) {
+            for (v, &j) in row.iter_mut().zip(&others) {
+                if j < fields {
+                    *v = 0.0;
+                }
+            }
+        }
+        ko
+    };
+    let cross = |y: &[f64]| x.transpose() * MatRef::from_row_major_slice(y, n, no);
+    let (k_cross, m_cross) = (cross(&ko), cross(&mo));
+    // The related block: the previous Grams, plus the new rows near the edit, less the previous
+    // rows that no untouched new node carries.
+    let mut carried_previous = vec![false; previous.model.nodes()];
+    let mut is_touched = vec![false; next.nodes()];
+    touched.iter().for_each(|&v| is_touched[v] = true);
+    for (v, &o) in node_map.iter().enumerate() {
+        if !is_touched[v] {
+            debug_assert!(o != u32::MAX, "an untouched node is a new one");
+            carried_previous[o as usize] = true;
+        }
+    }
+    let left: Vec<usize> = (0..previous.model.nodes())
+        .filter(|&o| !carried_previous[o])
+        .collect();
+    let new_side = |y: &Mat<f64>| {
+        let at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
+        local_gram(x_rows, w, &touched, y, &at)
+    };
+    let pm = previous.model;
+    let old_blocks = Blocks::of(&pm.pattern, &pm.k, &pm.m);
+    let cc = w - fields;
+    // The previous columns by rows on `left` and its neighbours, the rows the sums read (the
+    // rest stays zero, pages the system never maps).
+    let mut old_rows = vec![0.0; 3 * pm.nodes() * cc];
+    let mut read = vec![false; pm.nodes()];
+    for &o in &left {
+        for b in pm.pattern.row_ptr[o]..pm.pattern.row_ptr[o + 1] {
+            let v = pm.pattern.col[b] as usize;
+            if !std::mem::replace(&mut read[v], true) {
+                for d in 3 * v..3 * v + 3 {
+                    for (out, column) in old_rows[d * cc..(d + 1) * cc]
+                        .iter_mut()
+                        .zip(previous.columns)
+                    {
+                        *out = column[d];
+                    }
+                }
+            }
+        }
+    }
+    let old_side = |which| {
+        let y = old_blocks.product(which, &left, &old_rows, cc);
+        local_gram(
+            &old_rows,
+            cc,
+            &left,
+            &y,
+            &(0..left.len()).collect::<Vec<_>>(),
+        )
+    };
+    let (k_new, m_new, k_old, m_old) = (
+        new_side(&k_near),
+        new_side(&m_near),
+        old_side(Which::K),
+        old_side(Which::M),
+    );
+    let assemble = |which: Which, new: &Mat<f64>, old: &Mat<f64>, cross: &Mat<f64>| {
+        let mut g = Mat::<f64>::zeros(w, w);
+        for (c, &j) in others.iter().enumerate() {
+            for i in 0..w {
+                g[(i, j)] = cross[(i, c)];
+                g[(j, i)] = cross[(i, c)];
+            }
+        }
+        for &i in &related {
+            for &j in &related {
+                let before = match (which, i == j) {
+                    (_, false) => 0.0,
+                    (Which::M, true) => 1.0,
+                    (Which::K, true) => lambda[i].expect("related"),
+                };
+                // Both sums are over rows, so each alone is not symmetric; their difference
+                // is (the whole Grams' difference), to rounding: its mean is taken.
+                let local = |a: &Mat<f64>, p: usize, q: usize| a[(p, q)] + a[(q, p)];
+                let change = 0.5 * (local(new, i, j) - local(old, i - fields, j - fields));
+                g[(i, j)] = before + change;
+            }
+        }
+        g
+    };
+    Grams {
+        k: assemble(Which::K, &k_new, &k_old, &k_cross),
+        m: assemble(Which::M, &m_new, &m_old, &m_cross),
+        k_rows,
+        m_rows,
+    }
+}
+
+/// A whole model's `K` and `M` blocks (the mass as `M_ab I3` scalars), for products on a few
+/// rows.
+#[derive(Clone, Copy)]
+struct Blocks<'a> {
+    pattern: &'a BlockPattern,
+    k: &'a [[f64; 9]],
+    m: &'a [f64],
+}
+
+impl<'a> Blocks<'a> {
+    fn of(pattern: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
+        Blocks { pattern, k, m }
+    }
+
+    /// `A X` on the rows of `nodes` (three DOF rows per node, in that order), `X` given by
+    /// rows (`w` wide).
+    fn product(&self, which: Which, nodes: &[usize], x_rows: &[f64], w: usize) -> Mat<f64> {
+        let pattern = self.pattern;
+        let mut out = Mat::<f64>::zeros(3 * nodes.len(), w);
+        let mut acc = vec![0.0; 3 * w];
+        for (i, &node) in nodes.iter().enumerate() {
+            acc.fill(0.0);
+            for b in pattern.row_ptr[node]..pattern.row_ptr[node + 1] {
+                let col = 3 * pattern.col[b] as usize;
+                let s = &x_rows[col * w..(col + 3) * w];
+                match which {
+                    Which::K => add_block_product(&self.k[b], s, &mut acc),
+                    Which::M => {
+                        let m = self.m[b];
+                        acc.iter_mut().zip(s).for_each(|(a, v)| *a += m * v);
+                    }
+                }
+            }
+            for (r, a) in acc.chunks_exact(w).enumerate() {
+                for (j, &v) in a.iter().enumerate() {
+                    out[(3 * i + r, j)] = v;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// `sum_i x_i^T y_i` over the DOF rows of `nodes`, whose rows of `y` ([`Blocks::product`]'s
+/// layout) are at the node places `at`.
+fn local_gram(x_rows: &[f64], w: usize, nodes: &[usize], y: &Mat<f64>, at: &[usize]) -> Mat<f64> {
+    let xs = Mat::<f64>::from_fn(3 * nodes.len(), w, |i, j| {
+        x_rows[(3 * nodes[i / 3] + i % 3) * w + j]
+    });
+    let ys = Mat::<f64>::from_fn(3 * nodes.len(), y.ncols(), |i, j| {
+        y[(3 * at[i / 3] + i % 3, j)]
+    });
+    xs.transpose() * ys
+}
+
+/// The symmetric Gram matrix `X^T Y` (`Y = A X` for a symmetric `A`) from its lower triangle
+/// alone: half the work of the whole product.
+pub(super) fn gram(x: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
+    use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+    let w = x.ncols();
+    let mut g = Mat::<f64>::zeros(w, w);
+    matmul(
+        g.as_mut(),
+        BlockStructure::TriangularLower,
+        faer::Accum::Replace,
+        x.transpose(),
+        BlockStructure::Rectangular,
+        y,
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    for j in 0..w {
+        for i in 0..j {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
+    g
+}
+
+/// The nodes of `next` whose rows of `K` and `M` may differ from the previous shape's: those
+/// of every element within one cell of an `edited` cell. `None` where the edit is too large to
+/// be worth it (more than a quarter of the nodes).
+fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
+    let nodes = nodes_near(next, edited, 1);
+    (4 * nodes.len() <= next.nodes()).then_some(nodes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eigen::lobpcg::rigid_fields;
+    use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
+    use crate::fem::ElementKind;
+    use crate::shape::{ops as shape_ops, primitives::Primitive, SubFill, VoxelFill, VoxelGrid};
+
+    /// The Gram matrices from the previous solve's against those of the whole products, for a
+    /// stroke on a hollow sphere. An entry between two carried modes is off by their previous
+    /// residual (`x_i^T r_j`, bounded by `||x_i|| ||r_j||`, with a factor 10 for the norms'
+    /// slack: eq. 6 is a ratio of 2-norms scaled by infinity norms) and the previous modes'
+    /// M-orthonormality (rounding: 1e-11 of `||M|| ||x_i|| ||x_j||`); every other entry, and the
+    /// patch rows, must match to rounding. Leaving out the rows of the cells next to an edited
+    /// one (the refined fill's halo) is caught on hex27x2. The residuals are the previous
+    /// modes' own, recomputed: the sphere is solved by symmetry classes, and a mode imaged
+    /// across a swap reports its source's residual while its own also holds the mesh's
+    /// asymmetry (accepted to `SYMMETRY_TOLERANCE`).
+    fn check(kind: ElementKind, edit: impl Fn(&mut VoxelGrid)) {
+        let before = shape_ops::hollow(
+            &Primitive::Sphere { diameter: 10.0 }
+                .rasterize(1.0, 1.0)
+                .unwrap(),
+            2,
+        );
+        let previous = FemModel::assemble(&before, kind, 0.24).unwrap();
+        let options = EigenOptions {
+            count: ModeCount::First(20),
+            ..Default::default()
+        };
+        let solution = eigen::solve(&previous, SolverKind::Lanczos, &options).unwrap();
+        let previous_ops = Operators::new(&previous);
+        let mut own_residuals =
+            previous_ops.block_residuals(&solution.eigenvalues, solution.vectors.as_ref());
+        let guard_lambdas: Vec<f64> = (solution.guard_eigenvalues.iter())
+            .map(|&l| if l.is_nan() { 0.0 } else { l })
+            .collect();
+        own_residuals
+            .extend(previous_ops.block_residuals(&guard_lambdas, solution.guard_vectors.as_ref()));
+        let mut after = before.clone();
+        edit(&mut after);
+        let next = FemModel::assemble(&after, kind, 0.24).unwrap();
+        let (offset, _) = super::super::align(&previous, &next);
+        let old = super::super::previous_columns(&solution, 8);
+        let cc = old.len();
+        let map = super::super::node_map(&previous, &next, offset);
+        let carried = super::super::transfer_rows(&previous, &old, &next, offset, &map, 6);
+        let ops = Operators::new(&next);
+        let n = next.dofs();
+        let w = carried.columns;
+        let mut x_rows = carried.block;
+        let rigid = rigid_fields(&next);
+        for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
+            row[..6].copy_from_slice(&rigid[i * 6..i * 6 + 6]);
+        }
+        let edited = super::super::edited_cells(&previous, &next, offset);
+        assert!(edited
+            .as_ref()
+            .and_then(|e| touched_nodes(&next, e))
+            .is_some_and(|r| !r.is_empty()));
+        let lambda = relations(&solution, 0, cc);
+        // Every mode is related, and some of the guards (the classes' modes above the 20th).
+        assert!(lambda[..20].iter().all(|l| l.is_some()));
+        assert!(lambda[20..].iter().any(|l| l.is_some()));
+        let patch: Vec<usize> = (0..next.nodes()).step_by(7).collect();
+        let got = grams(
+            &ops,
+            &next,
+            edited.as_ref(),
+            &Previous {
+                model: &previous,
+                columns: &old,
+                lambda: &lambda,
+            },
+            &map,
+            &x_rows,
+            6,
+            &patch,
+        );
+        let x = MatRef::from_row_major_slice(&x_rows, n, w);
+        let (kx, mx) = (ops.apply_block(Which::K, x), ops.apply_block(Which::M, x));
+        let (want_k, want_m) = (x.transpose() * &kx, x.transpose() * &mx);
+        let norms: Vec<f64> = (0..w).map(|j| x.col(j).norm_l2()).collect();
+        for i in 0..w {
+            for j in 0..w {
+                let scale = norms[i] * norms[j];
+                // A related column's own residual; an unrelated one's products are exact.
+                let residual = |c: usize| match c.checked_sub(6) {
+                    Some(m) if lambda[m].is_some() => own_residuals[m],
+                    _ => 0.0,
+                };
+                let res = residual(i).max(residual(j));
+                let lam = guard_lambdas.iter().cloned().fold(0.0, f64::max);
+                let bound_k = (10.0 * res + 1e-11) * (ops.k_norm + lam * ops.m_norm) * scale;
+                let bound_m = 1e-11 * ops.m_norm * scale;
+                let (dk, dm) = (
+                    (got.k[(i, j)] - want_k[(i, j)]).abs(),
+                    (got.m[(i, j)] - want_m[(i, j)]).abs(),
+                );
+                assert!(
+                    dk <= bound_k,
+                    "{kind:?} K ({i}, {j}): {dk:e} against {bound_k:e}"
+                );
+                assert!(
+                    dm <= bound_m,
+                    "{kind:?} M ({i}, {j}): {dm:e} against {bound_m:e}"
+                );
+            }
+        }
+        for (r, &node) in patch.iter().enumerate() {
+            for c in 0..3 {
+                for j in 0..w {
+                    let d = 3 * node + c;
+                    let scale = norms[j];
+                    assert!(
+                        (got.k_rows[(3 * r + c, j)] - kx[(d, j)]).abs()
+                            <= 1e-11 * ops.k_norm * scale
+                    );
+                    assert!(
+                        (got.m_rows[(3 * r + c, j)] - mx[(d, j)]).abs()
+                            <= 1e-11 * ops.m_norm * scale
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn grams_from_the_previous_solve_match_the_products() {
+        // A voxel added on the outside (hex8i, hex27x2) and a partial voxel's fill changed
+        // without changing which voxels are solid (the cell's fingerprint must catch it).
+        let add = |g: &mut VoxelGrid| {
+            let d = g.dims();
+            let (x, y) = (d[0] / 2, d[1] / 2);
+            let z = (0..d[2])
+                .rev()
+                .find(|&z| g.get(x as isize, y as isize, z as isize))
+                .unwrap();
+            g.set(x - 1, y, z, true);
+            g.set(x, y + 1, z, true);
+        };
+        let refill = |g: &mut VoxelGrid| {
+            let (i, _) = g.partial_voxels().nth(3).map(|(i, f)| (i, *f)).unwrap();
+            let v = crate::shape::lattice_coords(i, g.dims());
+            g.set_fill(v[0], v[1], v[2], VoxelFill::Partial(SubFill([200; 64])));
+        };
+        for kind in [ElementKind::Hex8Incompatible, ElementKind::Hex27Blocks] {
+            check(kind, add);
+            check(kind, refill);
+        }
+    }
+}
