@@ -14,7 +14,7 @@
 //!
 //! [`solve`] step by step (the "mixed solver" idea of NeuralSound, Jin et al. 2022, sec. 4: a good
 //! start block makes an iterative eigensolver converge in a few steps):
-//! 1. [`transfer`] carries the previous eigenvectors to the new mesh: a node that persists
+//! 1. [`transfer`] (`warm/transfer.rs`) carries the previous eigenvectors to the new mesh: a node that persists
 //!    keeps its values, a new node takes the mean of its persisting lattice neighbours. The
 //!    two voxel sets are aligned first ([`align`]: a brush stroke at the edge of the object
 //!    moves the cropped grid's origin).
@@ -33,6 +33,10 @@
 
 mod correction;
 mod grams;
+mod transfer;
+
+pub use transfer::{align, align_voxels, transfer, Transferred};
+use transfer::{node_map, previous_columns, transfer_rows};
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
@@ -53,204 +57,6 @@ pub const WARM_ITERATIONS: usize = 10;
 /// Random columns at the end of the start block: a mode the previous shape did not have
 /// (a loose voxel's flapping) grows in from them.
 const RANDOM_GUARDS: usize = 4;
-
-/// Largest voxel offset between the previous and the new grid that [`align`] tries on each
-/// axis (a stroke at the boundary moves the cropped origin by the brush radius at most).
-const MAX_OFFSET: i64 = 4;
-
-/// The previous mesh's eigenvectors on the new mesh.
-#[derive(Clone, Debug)]
-pub struct Transferred {
-    /// Row-major `dofs x columns` block.
-    pub block: Vec<f64>,
-    /// Columns (modes carried).
-    pub columns: usize,
-    /// New nodes that existed before (kept their values).
-    pub kept_nodes: usize,
-    /// New nodes that did not (interpolated from neighbours, or zero).
-    pub new_nodes: usize,
-}
-
-/// The voxel offset `d` that maps the most voxels of `next` onto voxels of `previous`
-/// (element cells: blocks of voxels for [`crate::fem::ElementKind::Hex27Blocks`])
-/// (`next` voxel `v` is `previous` voxel `v + d`), and that overlap's size. Offset zero wins
-/// ties.
-pub fn align(previous: &FemModel, next: &FemModel) -> ([i64; 3], usize) {
-    align_voxels(&previous.voxels, previous.cell_dims(), &next.voxels)
-}
-
-/// [`align`] on voxel lists: `previous` lies in a grid of `previous_dims`.
-pub fn align_voxels(
-    previous: &[[usize; 3]],
-    previous_dims: [usize; 3],
-    next: &[[usize; 3]],
-) -> ([i64; 3], usize) {
-    let pd = previous_dims;
-    let mut occupied = vec![false; pd.iter().product()];
-    for v in previous {
-        occupied[v[0] + pd[0] * (v[1] + pd[1] * v[2])] = true;
-    }
-    let overlap = |d: [i64; 3]| {
-        next.iter()
-            .filter(|v| {
-                let q = [0, 1, 2].map(|a| v[a] as i64 + d[a]);
-                (0..3).all(|a| q[a] >= 0 && q[a] < pd[a] as i64)
-                    && occupied[q[0] as usize + pd[0] * (q[1] as usize + pd[1] * q[2] as usize)]
-            })
-            .count()
-    };
-    let mut best = ([0; 3], overlap([0; 3]));
-    if best.1 == next.len().min(previous.len()) {
-        return best;
-    }
-    for dz in -MAX_OFFSET..=MAX_OFFSET {
-        for dy in -MAX_OFFSET..=MAX_OFFSET {
-            for dx in -MAX_OFFSET..=MAX_OFFSET {
-                let o = overlap([dx, dy, dz]);
-                if o > best.1 {
-                    best = ([dx, dy, dz], o);
-                }
-            }
-        }
-    }
-    best
-}
-
-/// Carries `vectors` (columns over `previous`'s DOFs) to `next` (same element kind), with
-/// the voxel offset `offset` from [`align`].
-pub fn transfer(
-    previous: &FemModel,
-    vectors: MatRef<'_, f64>,
-    next: &FemModel,
-    offset: [i64; 3],
-) -> Transferred {
-    let map = node_map(previous, next, offset);
-    let columns: Vec<&[f64]> = (0..vectors.ncols())
-        .map(|j| column_slice(vectors, j))
-        .collect();
-    transfer_rows(previous, &columns, next, offset, &map, 0)
-}
-
-/// Column `j` of a matrix with unit row stride, as a slice.
-fn column_slice(m: MatRef<'_, f64>, j: usize) -> &[f64] {
-    m.col(j)
-        .try_as_col_major()
-        .expect("solution matrices are column-major")
-        .as_slice()
-}
-
-/// Each node of `next` that existed in `previous` (the voxel offset `offset` from [`align`]
-/// applied): its previous node number, `u32::MAX` for a new node.
-fn node_map(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Vec<u32> {
-    let lattice = PreviousLattice::new(previous, next, offset);
-    (0..next.nodes())
-        .map(|node| {
-            let q = lattice.place(next, node);
-            lattice.node(q).map_or(u32::MAX, |o| o as u32)
-        })
-        .collect()
-}
-
-/// The previous model's lattice as the new one sees it.
-struct PreviousLattice<'a> {
-    previous: &'a FemModel,
-    /// Lattice points per element along an axis, as `i64`.
-    order: i64,
-    offset: [i64; 3],
-}
-
-impl<'a> PreviousLattice<'a> {
-    fn new(previous: &'a FemModel, next: &FemModel, offset: [i64; 3]) -> Self {
-        PreviousLattice {
-            previous,
-            order: next.kind.order() as i64,
-            offset,
-        }
-    }
-
-    /// Where a node of `next` lies in the previous lattice.
-    fn place(&self, next: &FemModel, node: usize) -> [i64; 3] {
-        let here = next.node_lattice_coords(node);
-        [0, 1, 2].map(|a| here[a] + self.order * self.offset[a])
-    }
-
-    /// The previous node at lattice point `q`, if any.
-    fn node(&self, q: [i64; 3]) -> Option<usize> {
-        let [plx, ply, plz] = self.previous.lattice.map(|v| v as i64);
-        if (0..3).any(|a| q[a] < 0) || q[0] >= plx || q[1] >= ply || q[2] >= plz {
-            return None;
-        }
-        let node = self.previous.lattice_node[(q[0] + plx * (q[1] + ply * q[2])) as usize];
-        (node != u32::MAX).then_some(node as usize)
-    }
-}
-
-/// [`transfer`] of the previous vectors `columns` (each over the previous model's DOFs) into
-/// a block by rows of `lead + columns.len()` columns whose first `lead` are left zero for the
-/// caller (the instant answer's rigid fields): one pass, read in place. `map` is
-/// [`node_map`]'s. The kept nodes go in tiles of [`TILE_NODES`], column by column: each
-/// column is read in order and the tile's rows stay in cache (reading a node's values across
-/// all columns at once, or copying the columns by rows first, took longer).
-fn transfer_rows(
-    previous: &FemModel,
-    columns: &[&[f64]],
-    next: &FemModel,
-    offset: [i64; 3],
-    map: &[u32],
-    lead: usize,
-) -> Transferred {
-    let n = next.dofs();
-    let width = lead + columns.len();
-    let mut block = vec![0.0; n * width];
-    for start in (0..map.len()).step_by(TILE_NODES) {
-        let tile = &map[start..(start + TILE_NODES).min(map.len())];
-        for (j, column) in columns.iter().enumerate() {
-            for (t, &old) in tile.iter().enumerate() {
-                if old == u32::MAX {
-                    continue;
-                }
-                let (src, dst) = (3 * old as usize, 3 * (start + t) * width + lead + j);
-                block[dst] = column[src];
-                block[dst + width] = column[src + 1];
-                block[dst + 2 * width] = column[src + 2];
-            }
-        }
-    }
-    // A new node: the mean of its persisting lattice neighbours.
-    let lattice = PreviousLattice::new(previous, next, offset);
-    let mut fresh = 0;
-    for (node, _) in map.iter().enumerate().filter(|(_, &o)| o == u32::MAX) {
-        fresh += 1;
-        let rows = &mut block[3 * node * width..3 * (node + 1) * width];
-        let q = lattice.place(next, node);
-        let mut count = 0.0;
-        for d in 0..27i64 {
-            let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
-            if let Some(o) = lattice.node([0, 1, 2].map(|a| q[a] + step[a])) {
-                count += 1.0;
-                for (c, row) in rows.chunks_exact_mut(width).enumerate() {
-                    for (r, column) in row[lead..].iter_mut().zip(columns) {
-                        *r += column[3 * o + c];
-                    }
-                }
-            }
-        }
-        if count > 0.0 {
-            for row in rows.chunks_exact_mut(width) {
-                row[lead..].iter_mut().for_each(|v| *v /= count);
-            }
-        }
-    }
-    Transferred {
-        block,
-        columns: width,
-        kept_nodes: map.len() - fresh,
-        new_nodes: fresh,
-    }
-}
-
-/// Nodes per tile of [`transfer_rows`].
-const TILE_NODES: usize = 32;
 
 /// Solves `next` for `options.count` (the lowest `k` modes; "modes below a bound" is solved
 /// cold) starting from `previous`'s solution carried over by [`transfer`] (see the module
@@ -563,21 +369,6 @@ fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
     } else {
         r.get(.., 0..0)
     }
-}
-
-/// The columns a warm start carries, in place: the extra rigid modes (if any,
-/// [`extra_rigid`]), the modes, and at most `guards` guard vectors.
-fn previous_columns(previous: &EigenSolution, guards: usize) -> Vec<&[f64]> {
-    let guards = previous.guard_vectors.ncols().min(guards);
-    let parts = [
-        extra_rigid(previous),
-        previous.vectors.as_ref(),
-        previous.guard_vectors.get(.., ..guards),
-    ];
-    parts
-        .into_iter()
-        .flat_map(|part| (0..part.ncols()).map(move |j| column_slice(part, j)))
-        .collect()
 }
 
 /// `[rigid fields (if `fields`) | carried modes and guards | random guards]`, row-major

@@ -54,14 +54,14 @@ pub(super) struct Grams {
 pub(super) struct Previous<'a> {
     /// The previous model.
     pub model: &'a FemModel,
-    /// Its carried columns ([`super::previous_columns`]).
+    /// Its carried columns ([`super::transfer::previous_columns`]).
     pub columns: &'a [&'a [f64]],
     /// For each carried column, the eigenvalue whose relation stands for its products, or
     /// `None` (multiplied out): see [`relations`].
     pub lambda: &'a [Option<f64>],
 }
 
-/// For each of the `cc` carried columns of [`super::previous_rows`] (`extra` extra rigid
+/// For each of the `cc` carried columns of [`super::transfer::previous_columns`] (`extra` extra rigid
 /// modes, the modes, the guards), the previous eigenvalue of a mode or a guard that was solved
 /// to [`RELATION_MAX_RESIDUAL`], or `None`.
 pub(super) fn relations(previous: &EigenSolution, extra: usize, cc: usize) -> Vec<Option<f64>> {
@@ -378,7 +378,7 @@ mod tests {
         edit(&mut after);
         let next = FemModel::assemble(&after, kind, 0.24).unwrap();
         let (offset, _) = super::super::align(&previous, &next);
-        let old = super::super::previous_columns(&solution, 8);
+        let old = super::super::transfer::previous_columns(&solution, 8);
         let cc = old.len();
         let map = super::super::node_map(&previous, &next, offset);
         let carried = super::super::transfer_rows(&previous, &old, &next, offset, &map, 6);
