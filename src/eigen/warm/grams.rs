@@ -125,7 +125,24 @@ pub(super) fn grams(
     let m_near = new_blocks.product(Which::M, &near, x_rows, w);
     let patch_rows = |a: &Mat<f64>| a.get(..3 * rows_at.len(), ..).to_owned();
     let (k_rows, m_rows) = (patch_rows(&k_near), patch_rows(&m_near));
-    let Some(touched) = touched else {
+    // The previous nodes that no untouched new node carries. Every untouched node persists (a
+    // new node lies on an edited cell); were one new, the edit would not be local after all.
+    let left = touched.as_ref().and_then(|t| {
+        let mut is_touched = vec![false; next.nodes()];
+        t.iter().for_each(|&v| is_touched[v] = true);
+        let mut carried_previous = vec![false; previous.model.nodes()];
+        for (v, &o) in node_map.iter().enumerate() {
+            if !is_touched[v] {
+                *carried_previous.get_mut(o as usize)? = true;
+            }
+        }
+        Some(
+            (0..previous.model.nodes())
+                .filter(|&o| !carried_previous[o])
+                .collect::<Vec<usize>>(),
+        )
+    });
+    let (Some(touched), Some(left)) = (touched, left) else {
         // Whole products: the edit is not local, or nothing was converged.
         let mx = ops.rows_product(Which::M, x_rows, w);
         let kx = ops.rows_product(Which::K, x_rows, w);
@@ -160,19 +177,7 @@ pub(super) fn grams(
     let cross = |y: &[f64]| x.transpose() * MatRef::from_row_major_slice(y, n, no);
     let (k_cross, m_cross) = (cross(&ko), cross(&mo));
     // The related block: the previous Grams, plus the new rows near the edit, less the previous
-    // rows that no untouched new node carries.
-    let mut carried_previous = vec![false; previous.model.nodes()];
-    let mut is_touched = vec![false; next.nodes()];
-    touched.iter().for_each(|&v| is_touched[v] = true);
-    for (v, &o) in node_map.iter().enumerate() {
-        if !is_touched[v] {
-            debug_assert!(o != u32::MAX, "an untouched node is a new one");
-            carried_previous[o as usize] = true;
-        }
-    }
-    let left: Vec<usize> = (0..previous.model.nodes())
-        .filter(|&o| !carried_previous[o])
-        .collect();
+    // rows on `left`.
     let new_side = |y: &Mat<f64>| {
         let at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
         local_gram(x_rows, w, &touched, y, &at)
@@ -400,20 +405,23 @@ mod tests {
         assert!(lambda[..20].iter().all(|l| l.is_some()));
         assert!(lambda[20..].iter().any(|l| l.is_some()));
         let patch: Vec<usize> = (0..next.nodes()).step_by(7).collect();
+        let previous_side = Previous {
+            model: &previous,
+            columns: &old,
+            lambda: &lambda,
+        };
         let got = grams(
             &ops,
             &next,
             edited.as_ref(),
-            &Previous {
-                model: &previous,
-                columns: &old,
-                lambda: &lambda,
-            },
+            &previous_side,
             &map,
             &x_rows,
             6,
             &patch,
         );
+        // Without the edit's cells (a stroke too large to tell apart), whole products.
+        let whole = grams(&ops, &next, None, &previous_side, &map, &x_rows, 6, &patch);
         let x = MatRef::from_row_major_slice(&x_rows, n, w);
         let (kx, mx) = (ops.apply_block(Which::K, x), ops.apply_block(Which::M, x));
         let (want_k, want_m) = (x.transpose() * &kx, x.transpose() * &mx);
@@ -442,6 +450,9 @@ mod tests {
                     dm <= bound_m,
                     "{kind:?} M ({i}, {j}): {dm:e} against {bound_m:e}"
                 );
+                let rounding = 1e-11 * scale;
+                assert!((whole.k[(i, j)] - want_k[(i, j)]).abs() <= rounding * ops.k_norm);
+                assert!((whole.m[(i, j)] - want_m[(i, j)]).abs() <= rounding * ops.m_norm);
             }
         }
         for (r, &node) in patch.iter().enumerate() {
