@@ -270,24 +270,6 @@ pub fn ritz(
     Ok(out)
 }
 
-/// `out += A s` for one node block `A` (3x3, row-major) and the by-rows values of one node
-/// `s` (three DOF rows of `w` columns side by side; `out` likewise): the inner step of the
-/// products over a few node rows (`grams`).
-fn add_block_product(block: &[f64; 9], s: &[f64], out: &mut [f64]) {
-    let w = s.len() / 3;
-    if w == 0 {
-        return;
-    }
-    let (s0, rest) = s.split_at(w);
-    let (s1, s2) = rest.split_at(w);
-    for (r, o) in out.chunks_exact_mut(w).enumerate() {
-        let (a0, a1, a2) = (block[3 * r], block[3 * r + 1], block[3 * r + 2]);
-        for j in 0..w {
-            o[j] += a0 * s0[j] + a1 * s1[j] + a2 * s2[j];
-        }
-    }
-}
-
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
 /// to keep the highest wanted modes apart from the ones above them.
 const RITZ_GUARDS: usize = 8;
