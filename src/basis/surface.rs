@@ -26,7 +26,7 @@ pub(super) struct Face {
 /// volume-fraction interface (Youngs' method in volume-of-fluid codes). `None` where the
 /// neighbourhood holds no partial voxel (a binary staircase keeps its face normals) or the
 /// gradient vanishes.
-fn surface_normal(grid: &VoxelGrid, v: [usize; 3]) -> Option<[f64; 3]> {
+fn surface_normal(fractions: &Fractions, v: [usize; 3]) -> Option<[f64; 3]> {
     let c = v.map(|c| c as isize);
     let mut any_partial = false;
     let mut g = [0.0; 3];
@@ -34,7 +34,7 @@ fn surface_normal(grid: &VoxelGrid, v: [usize; 3]) -> Option<[f64; 3]> {
         for dy in -1..=1isize {
             for dx in -1..=1isize {
                 let d = [dx, dy, dz];
-                let f = grid.fraction(c[0] + dx, c[1] + dy, c[2] + dz);
+                let f = fractions.get(c[0] + dx, c[1] + dy, c[2] + dz);
                 any_partial |= f > 0.0 && f < 1.0;
                 for a in 0..3 {
                     // Sobel: the centre row weighs 4, edge rows 2, corner rows 1.
@@ -49,9 +49,46 @@ fn surface_normal(grid: &VoxelGrid, v: [usize; 3]) -> Option<[f64; 3]> {
     (any_partial && norm > 1e-9).then(|| g.map(|x| x / norm))
 }
 
+/// Every voxel's filled volume fraction ([`VoxelGrid::fraction`]), by voxel index.
+struct Fractions {
+    dims: [usize; 3],
+    values: Vec<f64>,
+}
+
+impl Fractions {
+    fn of(grid: &VoxelGrid) -> Self {
+        let mut values: Vec<f64> = grid
+            .occupancy()
+            .iter()
+            .map(|&o| if o { 1.0 } else { 0.0 })
+            .collect();
+        for (i, fill) in grid.partial_voxels() {
+            if grid.occupancy()[i] {
+                values[i] = fill.mean();
+            }
+        }
+        Fractions {
+            dims: grid.dims(),
+            values,
+        }
+    }
+
+    /// The fraction of voxel `(x, y, z)`; 0 out of range.
+    fn get(&self, x: isize, y: isize, z: isize) -> f64 {
+        let [nx, ny, nz] = self.dims.map(|d| d as isize);
+        if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
+            return 0.0;
+        }
+        self.values[(x + nx * (y + ny * z)) as usize]
+    }
+}
+
 /// Every voxel face with no solid neighbour across it.
 pub(super) fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
     let mut out = Vec::new();
+    // The normals read 27 fills a surface voxel: each voxel's fraction is worked out once
+    // (the mean of its 64 sub-cells), not 27 times.
+    let fractions = Fractions::of(grid);
     for v in grid.solid_voxels() {
         // The fill's normal, once per voxel, for whichever of its faces are exposed.
         let mut smooth: Option<Option<[f64; 3]>> = None;
@@ -63,7 +100,7 @@ pub(super) fn exposed_faces(grid: &VoxelGrid) -> Vec<Face> {
                     let mut normal = [0.0; 3];
                     normal[axis] = -(side as f64);
                     // The fill's normal, unless it points out of this face (a thin feature).
-                    let fill_normal = *smooth.get_or_insert_with(|| surface_normal(grid, v));
+                    let fill_normal = *smooth.get_or_insert_with(|| surface_normal(&fractions, v));
                     if let Some(n) = fill_normal.filter(|n| n[axis] * normal[axis] > 0.0) {
                         normal = n;
                     }
