@@ -161,20 +161,19 @@ pub(super) fn grams(
         .map(|k| x_rows[k / no * w + others[k % no]])
         .collect();
     let mo = ops.rows_product(Which::M, &xo, no);
-    // The rigid fields' images are zero.
-    let ko: Vec<f64> = if others.iter().all(|&j| j < fields) {
-        vec![0.0; n * no]
-    } else {
-        let mut ko = ops.rows_product(Which::K, &xo, no);
-        for row in ko.chunks_exact_mut(no) {
-            for (v, &j) in row.iter_mut().zip(&others) {
-                if j < fields {
-                    *v = 0.0;
-                }
-            }
+    // The rigid fields' images are zero (they lead `others`): only the rest are multiplied.
+    let rigid = others.iter().take_while(|&&j| j < fields).count();
+    let mut ko = vec![0.0; n * no];
+    if rigid < no {
+        let nk = no - rigid;
+        let xk: Vec<f64> = (0..n * nk)
+            .map(|k| xo[k / nk * no + rigid + k % nk])
+            .collect();
+        let kk = ops.rows_product(Which::K, &xk, nk);
+        for (row, images) in ko.chunks_exact_mut(no).zip(kk.chunks_exact(nk)) {
+            row[rigid..].copy_from_slice(images);
         }
-        ko
-    };
+    }
     let cross = |y: &[f64]| x.transpose() * MatRef::from_row_major_slice(y, n, no);
     let (k_cross, m_cross) = (cross(&ko), cross(&mo));
     // The related block: the previous Grams, plus the new rows near the edit, less the previous

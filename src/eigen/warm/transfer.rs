@@ -82,13 +82,22 @@ pub fn transfer(
     offset: [i64; 3],
 ) -> Transferred {
     let map = node_map(previous, next, offset);
+    // A view whose columns are not contiguous (a transposed or strided one) is copied first.
+    let owned;
+    let vectors = if vectors.row_stride() == 1 {
+        vectors
+    } else {
+        owned = vectors.to_owned();
+        owned.as_ref()
+    };
     let columns: Vec<&[f64]> = (0..vectors.ncols())
         .map(|j| column_slice(vectors, j))
         .collect();
     transfer_rows(previous, &columns, next, offset, &map, 0)
 }
 
-/// Column `j` of a matrix with unit row stride, as a slice.
+/// Column `j` of a matrix with unit row stride (an owned matrix's, or a column range of one:
+/// every matrix of an [`EigenSolution`]), as a slice.
 fn column_slice(m: MatRef<'_, f64>, j: usize) -> &[f64] {
     m.col(j)
         .try_as_col_major()
@@ -222,4 +231,31 @@ pub(super) fn previous_columns(previous: &EigenSolution, guards: usize) -> Vec<&
         .into_iter()
         .flat_map(|part| (0..part.ncols()).map(move |j| column_slice(part, j)))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::ElementKind;
+    use crate::shape::primitives::Primitive;
+    use faer::Mat;
+
+    #[test]
+    fn a_strided_view_transfers_as_its_copy() {
+        // A view with non-contiguous columns (a transpose) is copied first, not refused.
+        let grid = Primitive::Sphere { diameter: 5.0 }
+            .rasterize(1.0, 1.0)
+            .unwrap();
+        let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, 0.3).unwrap();
+        let n = model.dofs();
+        let rows = Mat::<f64>::from_fn(3, n, |j, i| (i * 7 + j * 3) as f64);
+        let strided = rows.transpose();
+        assert_ne!(strided.row_stride(), 1);
+        let a = transfer(&model, strided, &model, [0; 3]);
+        let b = transfer(&model, strided.to_owned().as_ref(), &model, [0; 3]);
+        assert_eq!(a.block, b.block);
+        assert_eq!((a.kept_nodes, a.new_nodes), (model.nodes(), 0));
+        // The identity: row `i` holds the columns' values at DOF `i`.
+        assert!((0..n).all(|i| (0..3).all(|j| a.block[i * 3 + j] == strided[(i, j)])));
+    }
 }
