@@ -58,7 +58,20 @@ impl<'a> Operators<'a> {
     /// (a pass over every block of `K`, 6 ms on a 30k-DOF model) are left `NaN`, for a caller
     /// that reports no residuals (the instant carried answer, [`super::warm::ritz`]).
     pub fn without_norms(model: &'a FemModel) -> Self {
-        let (p, k, m) = (&model.pattern, &model.k[..], &model.m[..]);
+        Self::parts_without_norms(&model.pattern, &model.k, &model.m)
+    }
+
+    /// Views `K` and `M` given as node blocks on one pattern.
+    pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
+        Operators {
+            k_norm: sparse::norm_inf(p, k),
+            m_norm: sparse::mass_norm_inf(p, m),
+            ..Self::parts_without_norms(p, k, m)
+        }
+    }
+
+    /// [`Self::from_parts`] with the norms left `NaN`.
+    fn parts_without_norms(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
         Operators {
             pattern: p,
             k,
@@ -68,21 +81,6 @@ impl<'a> Operators<'a> {
             absent: &[],
             k_norm: f64::NAN,
             m_norm: f64::NAN,
-            scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
-        }
-    }
-
-    /// Views `K` and `M` given as node blocks on one pattern.
-    pub fn from_parts(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
-        Operators {
-            pattern: p,
-            k,
-            m,
-            mass_diagonal: None,
-            mass_extra: &[],
-            absent: &[],
-            k_norm: sparse::norm_inf(p, k),
-            m_norm: sparse::mass_norm_inf(p, m),
             scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
         }
     }

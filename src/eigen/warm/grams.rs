@@ -178,10 +178,8 @@ pub(super) fn grams(
     let (k_cross, m_cross) = (cross(&ko), cross(&mo));
     // The related block: the previous Grams, plus the new rows near the edit, less the previous
     // rows on `left`.
-    let new_side = |y: &Mat<f64>| {
-        let at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
-        local_gram(x_rows, w, &touched, y, &at)
-    };
+    let touched_at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
+    let new_side = |y: &Mat<f64>| local_gram(x_rows, w, &touched, y, &touched_at);
     let pm = previous.model;
     let old_blocks = Blocks::of(&pm.pattern, &pm.k, &pm.m);
     let cc = w - fields;
