@@ -248,7 +248,7 @@ impl ModeBasis {
             return None;
         }
         let t = std::time::Instant::now();
-        let model = match FemModel::assemble_cached(grid, element, poisson_ratio, cache) {
+        let model = match FemModel::assemble_after_edit(grid, element, poisson_ratio, old, cache) {
             Ok(m) => m,
             Err(e) => return Some(Err(e.into())),
         };

@@ -83,7 +83,26 @@ impl FemModel {
         poisson_ratio: f64,
         cache: Option<&mut ElementCache>,
     ) -> Result<Self, ShapeError> {
-        Self::assemble_with(grid, kind, poisson_ratio, cache, true)
+        Self::assemble_with(grid, kind, poisson_ratio, cache, true, None)
+    }
+
+    /// [`FemModel::assemble_cached`] for `grid` after an edit of the grid `previous` was
+    /// assembled from (same element kind, Poisson's ratio and grid size): rows of `K` and `M`
+    /// that no changed element reaches are copied from `previous`, the others summed as
+    /// [`FemModel::assemble_cached`] sums them (each entry is the same sum in the same
+    /// order, so with the same cache the model is the same to the bit where `previous` was
+    /// assembled with every element cached). Elements within one cell of a changed one count
+    /// as changed (a refined fill reads its neighbours'). Anything else (another size or
+    /// integrand, or more than a few cells changed) is assembled in full. What a brush
+    /// stroke's carried answer assembles ([`crate::basis::ModeBasis::carried_ritz`]).
+    pub fn assemble_after_edit(
+        grid: &VoxelGrid,
+        kind: ElementKind,
+        poisson_ratio: f64,
+        previous: &FemModel,
+        cache: Option<&mut ElementCache>,
+    ) -> Result<Self, ShapeError> {
+        Self::assemble_with(grid, kind, poisson_ratio, cache, true, Some(previous))
     }
 
     /// The same model with `K` multiplied by `stiffness` and `M` by `mass` (for example
@@ -190,8 +209,10 @@ mod tests {
         for spec in ["bowl:d=16,wall=2", "sphere:d=16"] {
             let grid = super::test_grid(spec);
             let kind = ElementKind::Hex27Blocks;
-            let shared = FemModel::assemble_with(&grid, kind, 0.3, None, true).expect("model");
-            let alone = FemModel::assemble_with(&grid, kind, 0.3, None, false).expect("model");
+            let shared =
+                FemModel::assemble_with(&grid, kind, 0.3, None, true, None).expect("model");
+            let alone =
+                FemModel::assemble_with(&grid, kind, 0.3, None, false, None).expect("model");
             assert_eq!(shared.pattern.col, alone.pattern.col);
             let scale = alone.k.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
             let dk = (shared.k.iter().flatten())

@@ -426,7 +426,9 @@ mod tests {
         // The chain's wiring: the carried and exact answers to a stroke assemble from the
         // cache the previous exact answer filled, re-integrating only what the stroke touched
         // (at most the 27 elements whose input holds the voxel; `fem::cache` checks that the
-        // cached model equals the uncached one).
+        // cached model equals the uncached one). The carried answer copies the rows away from
+        // the stroke from the previous model (`fem::assembly::reuse`), so it reads fewer
+        // elements than the object has; the exact answer reads them all.
         let grid = Primitive::Bowl {
             diameter: 12.0,
             wall: 2.0,
@@ -454,11 +456,16 @@ mod tests {
         let after = elements(&exact.elements).stats();
         assert!(after.misses <= 27, "{after:?}");
         assert!(
-            after.hits + 27 >= cold.hits + cold.misses,
+            after.hits + after.misses < cold.hits + cold.misses,
             "{after:?} after {cold:?}"
         );
         exact.solve(&stroke).unwrap();
-        assert_eq!(elements(&exact.elements).stats().misses, 0);
+        let whole = elements(&exact.elements).stats();
+        assert_eq!(whole.misses, 0);
+        assert!(
+            whole.hits + 27 >= cold.hits + cold.misses,
+            "{whole:?} after {cold:?}"
+        );
     }
 
     #[test]

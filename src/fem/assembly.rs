@@ -6,20 +6,25 @@
 //! integration per orbit of fills), the [`ElementCache`] (fills seen in an earlier edit) and
 //! [`cut::CutElement::matrices_batch`] (the rest, in batches of [`cut::CUT_BATCH`]).
 
-use super::sparse::{self, ElementBlocks};
+mod reuse;
+
+use super::sparse::{self, ElementBlocks, ALL_ROWS};
 use super::{cut, ElementCache, ElementKind, FemModel, UnitElement};
 use crate::shape::fill::{FULL, SUBCELLS_PER_AXIS};
 use crate::shape::{lattice_coords, lattice_index, FillLookup, ShapeError, VoxelFill, VoxelGrid};
 
 impl FemModel {
     /// [`FemModel::assemble_cached`], with the cut elements' orbits shared or each cut
-    /// element integrated on its own (`share_orbits`, for the tests' reference).
+    /// element integrated on its own (`share_orbits`, for the tests' reference), and the rows
+    /// away from an edit copied from `previous` where it is a model of the same grid before
+    /// a local edit ([`reuse`]; else every row is summed).
     pub(super) fn assemble_with(
         grid: &VoxelGrid,
         kind: ElementKind,
         poisson_ratio: f64,
         mut cache: Option<&mut ElementCache>,
         share_orbits: bool,
+        previous: Option<&FemModel>,
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
@@ -83,6 +88,7 @@ impl FemModel {
         // The cut elements waiting to be integrated together.
         let mut batch = CutBatch {
             elements: Vec::with_capacity(cut::CUT_BATCH),
+            rows: Vec::with_capacity(cut::CUT_BATCH),
             fills: vec![0.0; subcells * cut::CUT_BATCH],
             keys: Vec::new(),
             orbits: Vec::with_capacity(cut::CUT_BATCH),
@@ -91,8 +97,36 @@ impl FemModel {
         let mut slots = vec![0usize; nloc * nloc];
         // A refined fill reads a one-voxel halo, which is then part of an element's input.
         let halo = per_voxel == crate::shape::refine::REFINED_PER_AXIS;
+        // Only refined fills (each reads its 26 neighbours) and hex27x2 blocks (8 voxels each)
+        // look fills up by voxel; the others read the element's own fill.
+        let voxel_fills = if halo || block > 1 {
+            FillLookup::new(grid)
+        } else {
+            FillLookup::unindexed(grid)
+        };
+        // The rows an edit leaves as they were, where an earlier model has them.
+        let reuse = previous.and_then(|previous| {
+            let states = (voxels.iter())
+                .map(|&v| block_state(&voxel_fills, v, block))
+                .collect();
+            let mesh = reuse::Mesh {
+                kind,
+                poisson_ratio,
+                voxel_dims: fine_dims,
+                lattice,
+                voxels: &voxels,
+                node_lattice: &node_lattice,
+                lattice_node: &lattice_node,
+                pattern: &pattern,
+            };
+            reuse::Reuse::plan(previous, &mesh, states)
+        });
         if let Some(cache) = cache.as_deref_mut() {
-            cache.begin(kind, poisson_ratio);
+            if reuse.is_some() {
+                cache.begin_partial(kind, poisson_ratio);
+            } else {
+                cache.begin(kind, poisson_ratio);
+            }
         }
         let mut key = Vec::new();
         // Cut elements whose fills are images of each other under a symmetry of the cube share
@@ -114,13 +148,6 @@ impl FemModel {
                 cut::symmetry::Orbits::new(p + 1, cells)
             });
         let mut mapped = ElementBlocks::zeros(nloc);
-        // Only refined fills (each reads its 26 neighbours) and hex27x2 blocks (8 voxels each)
-        // look fills up by voxel; the others read the element's own fill.
-        let voxel_fills = if halo || block > 1 {
-            FillLookup::new(grid)
-        } else {
-            FillLookup::unindexed(grid)
-        };
         let mut flush = |batch: &mut CutBatch,
                          k: &mut [[f64; 9]],
                          m: &mut [f64],
@@ -133,7 +160,7 @@ impl FemModel {
                     let e = batch.elements[j];
                     let nodes = &elements[e * nloc..(e + 1) * nloc];
                     rows.slots(&pattern, nodes, &mut slots);
-                    sparse::add_element_blocks(&slots, &blocks.k, &blocks.m, k, m);
+                    sparse::add_element_rows(&slots, &blocks.k, &blocks.m, k, m, batch.rows[j]);
                     if let Some(cache) = cache.as_deref_mut() {
                         cache.store(&batch.keys[j], blocks);
                     }
@@ -145,6 +172,7 @@ impl FemModel {
                 });
             }
             batch.elements.clear();
+            batch.rows.clear();
             batch.orbits.clear();
         };
         let mut unit_slots = vec![0usize; nloc * nloc];
@@ -161,7 +189,9 @@ impl FemModel {
             } else {
                 None
             };
-            let (full, fingerprint) = if block == 1 {
+            let (full, fingerprint) = if let Some(reuse) = &reuse {
+                reuse.state(e)
+            } else if block == 1 {
                 // (`partial` is the voxel's fill: a binary grid has none.)
                 let fill = partial.map_or(VoxelFill::Full, |f| VoxelFill::Partial(*f));
                 (partial.is_none(), fill_fingerprint([fill]))
@@ -169,15 +199,20 @@ impl FemModel {
                 block_state(&voxel_fills, *v, block)
             };
             cell_fills.push(fingerprint);
+            // The element's rows summed here: all, or those an edit touched.
+            let wanted = reuse.as_ref().map_or(ALL_ROWS, |r| r.rows_of(nodes));
+            if wanted == 0 {
+                continue;
+            }
             if full {
                 rows.slots(&pattern, nodes, &mut unit_slots);
-                sparse::add_element_blocks(&unit_slots, &unit.k, &unit.m, &mut k, &mut m);
+                sparse::add_element_rows(&unit_slots, &unit.k, &unit.m, &mut k, &mut m, wanted);
                 continue;
             }
             if let Some(cache) = cache.as_deref_mut() {
                 ElementCache::key_into(grid, *v, block, halo, &mut key);
                 rows.slots(&pattern, nodes, &mut unit_slots);
-                if cache.add_stored(&key, &unit_slots, &mut k, &mut m) {
+                if cache.add_stored(&key, &unit_slots, &mut k, &mut m, wanted) {
                     continue;
                 }
                 let at = batch.elements.len();
@@ -231,12 +266,13 @@ impl FemModel {
                             debug_assert!(kept, "a flush integrates every orbit in its batch");
                         }
                         rows.slots(&pattern, nodes, &mut unit_slots);
-                        sparse::add_element_blocks(
+                        sparse::add_element_rows(
                             &unit_slots,
                             &mapped.k,
                             &mapped.m,
                             &mut k,
                             &mut m,
+                            wanted,
                         );
                         if let Some(cache) = cache.as_deref_mut() {
                             cache.store(&key, &mapped);
@@ -246,6 +282,7 @@ impl FemModel {
                 }
             }
             batch.elements.push(e);
+            batch.rows.push(wanted);
             if batch.elements.len() == cut::CUT_BATCH {
                 flush(
                     &mut batch,
@@ -263,8 +300,10 @@ impl FemModel {
             cache.as_deref_mut(),
             orbits.as_mut(),
         );
-        if let Some(cache) = cache {
-            cache.finish();
+        match (&reuse, cache) {
+            (Some(reuse), _) => reuse.copy_rows(&pattern, &mut k, &mut m),
+            (None, Some(cache)) => cache.finish(),
+            (None, None) => {}
         }
         Ok(FemModel {
             kind,
@@ -287,6 +326,8 @@ impl FemModel {
 struct CutBatch {
     /// Their element numbers.
     elements: Vec<usize>,
+    /// The rows each adds ([`sparse::add_element_rows`]).
+    rows: Vec<u32>,
     /// Their sub-cell fills side by side.
     fills: Vec<f64>,
     /// Their element cache keys (where a cache is in use; kept allocated between batches).

@@ -107,6 +107,15 @@ impl ElementCache {
         self.misses = 0;
     }
 
+    /// Starts an assembly that reads only the elements near an edit and copies the rest from
+    /// an earlier model ([`super::FemModel::assemble_after_edit`]): it does not count as one
+    /// of the last [`KEEP_ASSEMBLIES`] (the elements it skips are still in use) and is not
+    /// [`ElementCache::finish`]ed.
+    pub(super) fn begin_partial(&mut self, kind: ElementKind, nu: f64) {
+        self.begin(kind, nu);
+        self.assembly -= 1;
+    }
+
     /// Ends an assembly: drops what the last [`KEEP_ASSEMBLIES`] did not use.
     pub(super) fn finish(&mut self) {
         let oldest = self.assembly.saturating_sub(KEEP_ASSEMBLIES - 1);
@@ -151,15 +160,16 @@ impl ElementCache {
         }
     }
 
-    /// Adds the matrices stored under `key` into `k` and `m` at the element's block positions
-    /// `slots` ([`super::sparse::add_element_blocks`]), or returns `false` where there are
-    /// none.
+    /// Adds the matrices stored under `key` into the rows `rows` ([`ALL_ROWS`](super::sparse::ALL_ROWS) for all) of
+    /// `k` and `m` at the element's block positions `slots`
+    /// ([`super::sparse::add_element_rows`]), or returns `false` where there are none.
     pub(super) fn add_stored(
         &mut self,
         key: &[u8],
         slots: &[usize],
         k: &mut [[f64; 9]],
         m: &mut [f64],
+        rows: u32,
     ) -> bool {
         let Some(entry) = self.entries.get_mut(key) else {
             self.misses += 1;
@@ -167,7 +177,7 @@ impl ElementCache {
         };
         entry.used = self.assembly;
         self.hits += 1;
-        super::sparse::add_element_blocks(slots, &entry.k, &entry.m, k, m);
+        super::sparse::add_element_rows(slots, &entry.k, &entry.m, k, m, rows);
         true
     }
 

@@ -18,7 +18,8 @@ pub use mass::{
     MassBlocks,
 };
 pub use scatter::{
-    add_element, add_element_blocks, add_elements, find_slots, node_pairs, ElementBlocks,
+    add_element, add_element_blocks, add_element_rows, add_elements, find_slots, node_pairs,
+    ElementBlocks, ALL_ROWS,
 };
 pub use spmm::{spmm, Scalar};
 

@@ -203,6 +203,55 @@ pub fn add_element_blocks(
     }
 }
 
+/// Every row of an element: the mask [`add_element_rows`] takes to add all of it.
+pub const ALL_ROWS: u32 = u32::MAX;
+
+/// [`add_element_blocks`] restricted to the rows of the element's local nodes `i` whose bit
+/// `rows & (1 << i)` is set (up to 32 nodes): a pair's block goes into `(a, b)` where `a`'s
+/// row is wanted and its transpose into `(b, a)` where `b`'s is. Each entry of a wanted row
+/// receives the same number as from [`add_element_blocks`], so summing elements in the same
+/// order gives those rows bit for bit (an assembly that copies its other rows from an
+/// earlier model: [`crate::fem::FemModel::assemble_after_edit`]).
+#[inline]
+pub fn add_element_rows(
+    slots: &[usize],
+    kb: &[[f64; 9]],
+    mb: &[f64],
+    k: &mut [[f64; 9]],
+    m: &mut [f64],
+    rows: u32,
+) {
+    let n = slots.len().isqrt();
+    if rows == ALL_ROWS || (n < 32 && rows == (1 << n) - 1) {
+        return add_element_blocks(slots, kb, mb, k, m);
+    }
+    debug_assert!(n * n == slots.len() && n <= 32);
+    debug_assert!(kb.len() == node_pairs(n) && mb.len() == node_pairs(n));
+    let wanted = |i: usize| rows & (1 << i) != 0;
+    let mut pair = 0;
+    for i in 0..n {
+        for j in i..n {
+            let (b, s) = (&kb[pair], mb[pair]);
+            pair += 1;
+            if wanted(i) {
+                let upper = slots[i * n + j];
+                k[upper].iter_mut().zip(b).for_each(|(u, v)| *u += v);
+                m[upper] += s;
+            }
+            if j != i && wanted(j) {
+                let lower = slots[j * n + i];
+                let lower_k = &mut k[lower];
+                for c in 0..3 {
+                    for d in 0..3 {
+                        lower_k[3 * c + d] += b[3 * d + c];
+                    }
+                }
+                m[lower] += s;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,6 +274,9 @@ mod tests {
         (ke, me)
     }
 
+    /// Two hex8 elements sharing a face, node numbers not all ascending in the second.
+    const TWO_HEX8: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 1, 8, 3, 9, 5, 10, 11, 7];
+
     #[test]
     fn blocks_hold_the_dense_matrices_exactly() {
         let nodes = 8;
@@ -240,7 +292,7 @@ mod tests {
     fn the_block_scatter_adds_what_the_dense_scatter_adds() {
         // Two hex8 elements sharing a face (node numbers not all ascending in the second, so
         // `find_slots` takes its binary-search path too): the same numbers, bit for bit.
-        let elements: Vec<u32> = vec![0, 1, 2, 3, 4, 5, 6, 7, 1, 8, 3, 9, 5, 10, 11, 7];
+        let elements = TWO_HEX8;
         let pattern = BlockPattern::from_elements(12, &elements, 8);
         let (ke, me) = element(8);
         let blocks = ElementBlocks::from_dense(8, &ke, &me);
@@ -255,6 +307,47 @@ mod tests {
         }
         assert!(kd == kb && md == mb);
         assert!(kd.iter().flatten().any(|&v| v != 0.0));
+    }
+
+    #[test]
+    fn a_masked_scatter_adds_exactly_the_wanted_rows() {
+        // Two hex8 elements sharing a face, the rows of a set of nodes wanted (each element's
+        // mask picks its local nodes in the set): those rows hold what the whole scatter adds,
+        // bit for bit, and the others nothing.
+        let elements = TWO_HEX8;
+        let pattern = BlockPattern::from_elements(12, &elements, 8);
+        let (ke, me) = element(8);
+        let blocks = ElementBlocks::from_dense(8, &ke, &me);
+        let mut slots = vec![0; 64];
+        let zeros = (
+            vec![[0.0; 9]; pattern.col.len()],
+            vec![0.0; pattern.col.len()],
+        );
+        let (mut kw, mut mw) = zeros.clone();
+        for e in elements.chunks_exact(8) {
+            find_slots(&pattern, e, &mut slots);
+            add_element_blocks(&slots, &blocks.k, &blocks.m, &mut kw, &mut mw);
+        }
+        for set in [0u32, 1, 0b10, 0b1010_0101_0011, 0xfff] {
+            let (mut km, mut mm) = zeros.clone();
+            for e in elements.chunks_exact(8) {
+                let mask = (e.iter().enumerate())
+                    .filter(|(_, &a)| set & (1 << a) != 0)
+                    .fold(0, |mask, (i, _)| mask | 1 << i);
+                find_slots(&pattern, e, &mut slots);
+                add_element_rows(&slots, &blocks.k, &blocks.m, &mut km, &mut mm, mask);
+            }
+            for a in 0..12 {
+                for s in pattern.row_ptr[a]..pattern.row_ptr[a + 1] {
+                    if set & (1 << a) != 0 {
+                        assert!(km[s] == kw[s] && mm[s] == mw[s], "set {set:#x} row {a}");
+                    } else {
+                        assert!(km[s] == [0.0; 9] && mm[s] == 0.0, "set {set:#x} row {a}");
+                    }
+                }
+            }
+            assert!(set == 0 || km.iter().flatten().any(|&v| v != 0.0));
+        }
     }
 
     #[test]
@@ -273,7 +366,7 @@ mod tests {
 
     #[test]
     fn slots_are_found_in_any_node_order() {
-        let elements: Vec<u32> = vec![0, 1, 2, 3, 4, 5, 6, 7, 1, 8, 3, 9, 5, 10, 11, 7];
+        let elements = TWO_HEX8;
         let pattern = BlockPattern::from_elements(12, &elements, 8);
         let mut slots = vec![0; 64];
         for e in elements.chunks_exact(8) {
