@@ -160,9 +160,9 @@ impl ElementCache {
         }
     }
 
-    /// Adds the matrices stored under `key` into the rows `rows` ([`ALL_ROWS`](super::sparse::ALL_ROWS) for all) of
-    /// `k` and `m` at the element's block positions `slots`
-    /// ([`super::sparse::add_element_rows`]), or returns `false` where there are none.
+    /// Adds the matrices stored under `key` into the rows `rows` of `k` and `m`
+    /// ([`ALL_ROWS`](super::sparse::ALL_ROWS) for all) at the element's block positions
+    /// `slots` ([`super::sparse::add_element_rows`]), or returns `false` where there are none.
     pub(super) fn add_stored(
         &mut self,
         key: &[u8],
