@@ -19,7 +19,8 @@
 //!   [`PROGRESSIVE_BUDGET_MS`]) and the mean frequency error of its lowest 10 modes against
 //!   the exact ones.
 //!
-//! `-- --quick` runs the default object only; `-- --scipy DIR` exports the matrices and this
+//! `-- --quick` runs the default object only, `-- --only NAME` the objects whose name holds
+//! NAME (`-- --only cup`); `-- --scipy DIR` exports the matrices and this
 //! solver's answers for the SciPy comparison (`scripts/scipy-compare.sh`).
 //!
 //! `-- --drag [INTERVAL_MS]` measures the engine as the plugin runs it: a drag of one-voxel
@@ -372,7 +373,14 @@ fn main() {
         "exact+", "warm+", "its", "err", "ritz-", "err", "asm-", "exact-", "warm-", "its", "err",
         "exact~", "coarse", "err10"
     );
-    for (name, spec, nu) in objects(quick) {
+    let only = args
+        .iter()
+        .position(|a| a == "--only")
+        .map(|i| args.get(i + 1).expect("--only NAME").clone());
+    let wanted = objects(quick)
+        .into_iter()
+        .filter(|(name, _, _)| only.as_ref().is_none_or(|o| name.contains(o.as_str())));
+    for (name, spec, nu) in wanted {
         let grid = grid_of(&spec, kind);
         // The median of a few cold solves: one run varies by 10 % on a shared machine.
         let mut colds: Vec<(f64, ModeBasis)> = (0..COLD_RUNS)

@@ -448,8 +448,8 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     let rows: Vec<Vec<String>> = lines
         .map(|l| l.split(',').map(str::to_string).collect())
         .collect();
-    // 2 shapes x 2 resolutions x 6 (element, solver) runs.
-    assert_eq!(rows.len(), 24);
+    // 2 shapes x 2 resolutions x 6 (element, solver) runs, and the neural predictor on each.
+    assert_eq!(rows.len(), 26);
     let error = |shape: &str, n: &str, element: &str| -> f64 {
         rows.iter()
             .find(|r| r[0] == shape && r[1] == n && r[2] == element && r[3] == "lanczos")
@@ -463,17 +463,40 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     // An independent expectation: on the same voxels, quadratic elements are closer to the
     // (quadratic, finer) reference than locking-prone plain hex8 on a plate.
     assert!(error("plate", "8", "hex27") < error("plate", "8", "hex8"));
+    // The shipped predictor on its 32^3 input, against the same reference: each of the plate's
+    // lowest 10 modes has a predicted partial within about a band (bands are 10-30 % wide
+    // below 2 kHz; measured 5.4 %), so the mean distance stays under 15 %.
+    let neural: Vec<&Vec<String>> = rows.iter().filter(|r| r[2] == "neural").collect();
+    assert_eq!(neural.len(), 2, "{neural:?}");
+    for r in &neural {
+        assert_eq!((r[1].as_str(), r[3].as_str()), ("32", "predictor"), "{r:?}");
+    }
+    let plate: f64 = neural.iter().find(|r| r[0] == "plate").unwrap()[7]
+        .parse()
+        .unwrap();
+    assert!(plate < 15.0, "the predictor's plate: {plate} %");
     let png = std::fs::read(dir.path().join("chart.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     // Re-plotting the CSV with a row appended by another method (as the neural predictor will).
     let csv_path = dir.path().join("chart.csv");
-    let extra = format!("{csv}plate,8,neural,predictor,0e0,0,0.3,4.2,6.0\n");
+    let extra = format!("{csv}plate,8,other,method,0e0,0,0.3,4.2,6.0\n");
     std::fs::write(&csv_path, extra).unwrap();
+    // With the held-out split's figures (`predictor eval --csv`): a third panel.
+    let methods = dir.path().join("predictor.csv");
+    std::fs::write(
+        &methods,
+        "method,objects,time_ms,recall_percent,precision_percent,amplitude_mse,pitch_cents\n\
+         network + pitch index,500,13.7,66.8,59.2,0.1041,26.2\n\
+         coarse FEM,500,50.1,77.2,76.2,0.0781,22.7\n",
+    )
+    .unwrap();
     let replot = dir.path().join("replot");
     let out = modalforge(&[
         "chart",
         "--from",
         csv_path.to_str().unwrap(),
+        "--predictor",
+        methods.to_str().unwrap(),
         "--out",
         replot.to_str().unwrap(),
     ]);
@@ -482,11 +505,29 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("25 runs"));
-    assert_eq!(
-        &std::fs::read(replot.join("chart.png")).unwrap()[..4],
-        b"\x89PNG"
+    assert!(String::from_utf8_lossy(&out.stdout).contains("27 runs"));
+    let png = std::fs::read(replot.join("chart.png")).unwrap();
+    assert_eq!(&png[..4], b"\x89PNG");
+    // IHDR width: 600 pixels a panel and a 40-pixel margin, so two shapes and the method panel.
+    let width = u32::from_be_bytes(png[16..20].try_into().unwrap());
+    assert_eq!(width, 3 * 600 + 40);
+    // A malformed methods CSV is one clear line.
+    std::fs::write(&methods, "method,time\n").unwrap();
+    let out = modalforge(&[
+        "chart",
+        "--from",
+        csv_path.to_str().unwrap(),
+        "--predictor",
+        methods.to_str().unwrap(),
+        "--out",
+        replot.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("predictor.csv"),
+        "{err}"
     );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
     // A malformed row is one clear line naming the row, and no PNG.
     std::fs::write(
         &csv_path,
@@ -503,7 +544,7 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("line 26") && err.contains("field 7"), "{err}");
+    assert!(err.contains("line 28") && err.contains("field 7"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(!bad.join("chart.png").exists());
 }

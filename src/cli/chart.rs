@@ -4,8 +4,9 @@
 //! shapes (a solid sphere, a hemispherical bowl with a wall of 1/16 of its diameter, a plate of
 //! thickness 1/16 of its side; steel, 0.2 m) over voxel resolutions, elements and solvers
 //! (residual 1e-6, LOBPCG's floor), and writes every run to `chart.csv` and a log-log plot of frequency
-//! error against solve time to `chart.png`. Later methods (the neural predictor) add their
-//! points to the same CSV.
+//! error against solve time to `chart.png`. The shipped neural predictor adds its point to each
+//! shape ([`predictor`]); `--predictor FILE` adds a panel of the held-out split's mask recall
+//! and precision against time, from `modalforge predictor eval --csv FILE`.
 //!
 //! Error: the mean and the largest relative difference of the lowest [`CHART_MODES`]
 //! frequencies from the shape's reference, which is the same shape solved with quadratic
@@ -14,6 +15,10 @@
 //! reference resolution measure discretisation error only; coarser points also carry the
 //! staircase's geometric error, which is what a user choosing a resolution pays. Plate and bowl
 //! resolutions keep their wall a whole number of voxels, so each is the same physical object.
+
+mod predictor;
+
+pub use predictor::{methods_from_csv, methods_to_csv, MethodRow};
 
 use super::CliError;
 use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
@@ -36,6 +41,9 @@ pub const CHART_MODES: usize = 10;
 /// through a direct factorisation takes minutes). References are not capped.
 pub const MAX_CHART_DOFS: usize = 100_000;
 
+/// The benchmark shapes' largest extent, m (steel).
+const SIZE_M: f64 = 0.2;
+
 /// The bundled font (DejaVu Sans, Bitstream Vera licence, `assets/fonts/`).
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
@@ -52,6 +60,10 @@ pub struct ChartArgs {
     /// running the sweep; writes DIR/chart.png only.
     #[arg(long, value_name = "CSV", conflicts_with = "quick")]
     pub from: Option<PathBuf>,
+    /// Add a panel of the neural predictor's and its comparison methods' mask recall and
+    /// precision against time on the held-out split, from `modalforge predictor eval --csv`.
+    #[arg(long, value_name = "CSV")]
+    pub predictor: Option<PathBuf>,
 }
 
 /// One solve of the sweep.
@@ -104,9 +116,8 @@ fn solve(
 ) -> Result<Option<(Vec<f64>, usize, f64)>, CliError> {
     let fail = |e: &dyn std::fmt::Display| CliError::Option(format!("chart: {name} {n}: {e}"));
     let steel = Material::parse("steel").map_err(|e| fail(&e))?;
-    let size_m = 0.2;
     let grid = shape(name, n)
-        .rasterize(1.0, size_m / n as f64)
+        .rasterize(1.0, SIZE_M / n as f64)
         .map_err(|e| fail(&e))?;
     let t = Instant::now();
     let model = FemModel::assemble(&grid, kind, steel.poisson_ratio).map_err(|e| fail(&e))?;
@@ -163,6 +174,8 @@ pub fn sweep(
         (ElementKind::Hex27, SolverKind::Lanczos, 1e-6),
         (ElementKind::Hex27, SolverKind::Lobpcg, 1e-6),
     ];
+    let neural = modalforge::predictor::Predictor::shipped()
+        .map_err(|e| CliError::Option(format!("chart: the shipped predictor: {e}")))?;
     let mut points = Vec::new();
     for &(name, resolutions, n_ref) in shapes {
         let (reference, ..) = solve(
@@ -205,6 +218,9 @@ pub fn sweep(
                 points.push(point);
             }
         }
+        let point = predictor::neural_point(&neural, name, SIZE_M, &reference)?;
+        progress(&point);
+        points.push(point);
     }
     Ok(points)
 }
@@ -232,33 +248,9 @@ pub fn to_csv(points: &[ChartPoint]) -> String {
 
 /// Parses a chart CSV (the format [`to_csv`] writes; extra rows from other methods welcome).
 pub fn from_csv(text: &str) -> Result<Vec<ChartPoint>, String> {
-    let mut lines = text.lines();
-    let header = lines.next().unwrap_or_default();
-    if header.trim() != CSV_HEADER {
-        return Err(format!("the first line must be the header '{CSV_HEADER}'"));
-    }
     let mut points = Vec::new();
-    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
-        let row = i + 2;
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        if f.len() != 9 {
-            return Err(format!(
-                "line {row}: expected 9 comma-separated fields, found {}",
-                f.len()
-            ));
-        }
-        let num = |k: usize| -> Result<f64, String> {
-            f[k].parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite() && *v >= 0.0)
-                .ok_or_else(|| {
-                    format!(
-                        "line {row}: field {} ('{}') is not a number >= 0",
-                        k + 1,
-                        f[k]
-                    )
-                })
-        };
+    for (row, f) in csv_rows(text, CSV_HEADER, 9)? {
+        let num = |k: usize| csv_number(&f, k, row, false);
         points.push(ChartPoint {
             shape: f[0].to_string(),
             resolution: num(1)? as usize,
@@ -274,9 +266,51 @@ pub fn from_csv(text: &str) -> Result<Vec<ChartPoint>, String> {
     Ok(points)
 }
 
+/// The data lines of a CSV with `header` as its first line, each as its line number and its
+/// `fields` trimmed fields (blank lines skipped), else the error line.
+fn csv_rows<'a>(
+    text: &'a str,
+    header: &str,
+    fields: usize,
+) -> Result<Vec<(usize, Vec<&'a str>)>, String> {
+    let mut lines = text.lines();
+    if lines.next().unwrap_or_default().trim() != header {
+        return Err(format!("the first line must be the header '{header}'"));
+    }
+    let mut rows = Vec::new();
+    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let row = i + 2;
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        if f.len() != fields {
+            return Err(format!(
+                "line {row}: expected {fields} comma-separated fields, found {}",
+                f.len()
+            ));
+        }
+        rows.push((row, f));
+    }
+    Ok(rows)
+}
+
+/// Field `k` of CSV line `row` as a number >= 0 (or NaN where `nan_ok`), else the error line.
+fn csv_number(fields: &[&str], k: usize, row: usize, nan_ok: bool) -> Result<f64, String> {
+    fields[k]
+        .parse::<f64>()
+        .ok()
+        .filter(|v| (v.is_finite() && *v >= 0.0) || (nan_ok && v.is_nan()))
+        .ok_or_else(|| {
+            format!(
+                "line {row}: field {} ('{}') is not a number >= 0",
+                k + 1,
+                fields[k]
+            )
+        })
+}
+
 /// Draws one log-log panel per shape, mean error against time: colour per element, marker per
-/// solver, and a line through each (element, solver, tolerance) series in resolution order.
-pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
+/// solver, and a line through each (element, solver, tolerance) series in resolution order;
+/// then, where `methods` holds rows, the held-out split's panel ([`predictor`]).
+pub fn plot(points: &[ChartPoint], methods: &[MethodRow], path: &Path) -> Result<(), CliError> {
     let fail = |e: &dyn std::fmt::Display| {
         CliError::Option(format!("chart: drawing {}: {e}", path.display()))
     };
@@ -298,7 +332,8 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
             shapes.push(&p.shape);
         }
     }
-    let root = BitMapBackend::new(path, (600 * shapes.len() as u32 + 40, 760)).into_drawing_area();
+    let panels = shapes.len() + usize::from(!methods.is_empty());
+    let root = BitMapBackend::new(path, (600 * panels as u32 + 40, 760)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let root = root
         .titled(
@@ -306,8 +341,12 @@ pub fn plot(points: &[ChartPoint], path: &Path) -> Result<(), CliError> {
             ("sans-serif", 24),
         )
         .map_err(|e| fail(&e))?;
-    for (panel, shape) in root.split_evenly((1, shapes.len())).iter().zip(&shapes) {
+    let split = root.split_evenly((1, panels));
+    for (panel, shape) in split.iter().zip(&shapes) {
         draw_panel(panel, shape, points, axes.clone()).map_err(|e| fail(&e))?;
+    }
+    if let Some(panel) = split.get(shapes.len()).filter(|_| !methods.is_empty()) {
+        predictor::draw_methods(panel, methods).map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())
@@ -330,6 +369,7 @@ fn colour_of(element: &str) -> RGBColor {
         "hex8i" => RGBColor(31, 119, 180),
         "hex27" => RGBColor(44, 160, 44),
         "hex27x2" => RGBColor(148, 103, 189),
+        "neural" => RGBColor(227, 119, 194),
         _ => RGBColor(120, 120, 120),
     }
 }
@@ -421,7 +461,12 @@ fn draw_run(
     chart.draw_series(LineSeries::new(xy.clone(), line))?;
     let style = colour.filled();
     let label = format!("{element} {solver} {tolerance:.0e}");
-    if solver == "lanczos" {
+    if element == "neural" {
+        chart
+            .draw_series(xy.iter().map(|&p| Cross::new(p, 7, colour.stroke_width(3))))?
+            .label("neural predictor (32^3)")
+            .legend(move |(x, y)| Cross::new((x, y), 5, colour.stroke_width(3)));
+    } else if solver == "lanczos" {
         chart
             .draw_series(xy.iter().map(|&p| Circle::new(p, 5, style)))?
             .label(label)
@@ -444,6 +489,18 @@ fn draw_run(
     Ok(())
 }
 
+/// Reads a CSV file (size-limited) for `modalforge chart`.
+fn read_csv(csv: &Path, what: &'static str) -> Result<String, CliError> {
+    modalforge::limits::read_text(csv, what).map_err(|e| match e {
+        modalforge::limits::TextReadError::TooLarge(e) => CliError::Option(e.to_string()),
+        modalforge::limits::TextReadError::Io(source) => CliError::Io {
+            action: "read",
+            path: csv.to_path_buf(),
+            source,
+        },
+    })
+}
+
 /// Runs `modalforge chart`.
 pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
     std::fs::create_dir_all(&args.out).map_err(|source| CliError::Io {
@@ -451,19 +508,20 @@ pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
         path: args.out.clone(),
         source,
     })?;
+    let methods = match &args.predictor {
+        Some(csv) => {
+            let text = read_csv(csv, "predictor CSV")?;
+            methods_from_csv(&text)
+                .map_err(|e| CliError::Option(format!("{}: {e}", csv.display())))?
+        }
+        None => Vec::new(),
+    };
     if let Some(csv) = &args.from {
-        let text = modalforge::limits::read_text(csv, "chart CSV").map_err(|e| match e {
-            modalforge::limits::TextReadError::TooLarge(e) => CliError::Option(e.to_string()),
-            modalforge::limits::TextReadError::Io(source) => CliError::Io {
-                action: "read",
-                path: csv.clone(),
-                source,
-            },
-        })?;
+        let text = read_csv(csv, "chart CSV")?;
         let points =
             from_csv(&text).map_err(|e| CliError::Option(format!("{}: {e}", csv.display())))?;
         let png = args.out.join("chart.png");
-        plot(&points, &png)?;
+        plot(&points, &methods, &png)?;
         return Ok(format!("wrote {} ({} runs)", png.display(), points.len()));
     }
     let points = sweep(args.quick, |p| {
@@ -486,7 +544,7 @@ pub fn chart_command(args: &ChartArgs) -> Result<String, CliError> {
         source,
     })?;
     let png = args.out.join("chart.png");
-    plot(&points, &png)?;
+    plot(&points, &methods, &png)?;
     Ok(format!(
         "wrote {} and {} ({} runs)",
         csv.display(),

@@ -4,10 +4,12 @@
 //! Where it sits: between [`modalforge::predictor::dataset`]'s records on disk and
 //! [`modalforge::predictor::train`] / [`modalforge::predictor::metrics`].
 
+use super::chart::{methods_to_csv, MethodRow};
 use super::CliError;
 use modalforge::predictor::dataset::Record;
 use modalforge::predictor::pitch_index::PitchIndex;
 use modalforge::predictor::{baseline, metrics, train};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -99,6 +101,9 @@ pub struct EvalArgs {
     /// Pitch index the bands play at [default: the shipped one].
     #[arg(long, value_name = "FILE")]
     pub pitch_index: Option<PathBuf>,
+    /// Also write each method's figures to this CSV, for `modalforge chart --predictor FILE`.
+    #[arg(long, value_name = "FILE.csv")]
+    pub csv: Option<PathBuf>,
 }
 
 /// Reads a pitch index file, or the shipped one.
@@ -228,34 +233,95 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         )));
     }
     let pitch = read_pitch_index(args.pitch_index.as_deref())?;
-    let t0 = std::time::Instant::now();
-    let played =
-        thread_pool(Some(1))?.install(|| metrics::evaluate(&model, Some(&pitch), &held, &device));
-    let per_shape_ms = t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64;
-    let alone = thread_pool(Some(1))?.install(|| metrics::evaluate(&model, None, &held, &device));
-    let network = format!(
-        "{played} ({per_shape_ms:.1} ms per shape scored with its pitch index, batches of 8, one thread)\n\
-         network alone:  {alone} (the band frequencies from its own head)"
+    let one = thread_pool(Some(1))?;
+    let timed = |f: &(dyn Fn() -> metrics::Metrics + Sync)| {
+        let t0 = std::time::Instant::now();
+        let m = one.install(f);
+        (m, t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64)
+    };
+    let (played, played_ms) = timed(&|| metrics::evaluate(&model, Some(&pitch), &held, &device));
+    let (alone, alone_ms) = timed(&|| metrics::evaluate(&model, None, &held, &device));
+    let mut rows = vec![
+        MethodRow::new("network + pitch index", &played, played_ms),
+        MethodRow::new("network alone", &alone, alone_ms),
+    ];
+    let mut out = format!(
+        "network:        {played} ({played_ms:.1} ms per shape scored with its pitch index, batches of 8, one thread)\n\
+         network alone:  {alone} (the band frequencies from its own head)\n"
     );
     let train = decoded_split(&args.data, false, usize::MAX)?;
     if train.is_empty() {
-        return Ok(format!(
-            "network:        {network}\n\
-             shape matching: no training records under {} to match against",
+        let _ = writeln!(
+            out,
+            "shape matching: no training records under {} to match against",
             args.data.display()
-        ));
+        );
+    } else {
+        let matcher = baseline::ShapeMatch::new(&train);
+        let t0 = std::time::Instant::now();
+        let scores: Vec<metrics::ObjectScore> = held
+            .iter()
+            .filter_map(|r| Some(metrics::score(matcher.predict(&r.grid)?, &r.labels)))
+            .collect();
+        let matched_ms = t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64;
+        let matched = metrics::summarise(&scores);
+        let _ = writeln!(
+            out,
+            "shape matching: {matched} (nearest of {} training shapes, {matched_ms:.1} ms per shape)",
+            train.len()
+        );
+        rows.push(MethodRow::new("shape matching", &matched, matched_ms));
     }
-    let matcher = baseline::ShapeMatch::new(&train);
-    let scores: Vec<metrics::ObjectScore> = held
-        .iter()
-        .filter_map(|r| Some(metrics::score(matcher.predict(&r.grid)?, &r.labels)))
-        .collect();
-    let matched = metrics::summarise(&scores);
-    Ok(format!(
-        "network:        {network}\n\
-         shape matching: {matched} (nearest of {} training shapes)",
-        train.len()
-    ))
+    // The product's progressive first answer, as a predictor: FEM at half the resolution.
+    let element = modalforge::predictor::SHIPPED_LABEL_ELEMENT;
+    let (mut scores, mut times_ms, mut failed) = (Vec::new(), Vec::new(), 0);
+    one.install(|| {
+        for r in &held {
+            let t0 = std::time::Instant::now();
+            match baseline::coarse_fem(&r.grid, element) {
+                Ok(encoding) => {
+                    times_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                    scores.push(metrics::score(&encoding, &r.labels));
+                }
+                Err(_) => failed += 1,
+            }
+        }
+    });
+    let coarse = metrics::summarise(&scores);
+    let mean_ms = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
+    times_ms.sort_by(f64::total_cmp);
+    let median_ms = times_ms
+        .get(times_ms.len() / 2)
+        .copied()
+        .unwrap_or(f64::NAN);
+    let _ = write!(
+        out,
+        "coarse FEM:     {coarse} (half resolution, {element}, {mean_ms:.1} ms per shape, median {median_ms:.1}; {failed} shapes without a half-resolution grid)"
+    );
+    rows.push(MethodRow::new("coarse FEM", &coarse, mean_ms));
+    if let Some(path) = &args.csv {
+        std::fs::write(path, methods_to_csv(&rows)).map_err(|source| CliError::Io {
+            action: "write",
+            path: path.clone(),
+            source,
+        })?;
+        let _ = write!(out, "\nwrote {}", path.display());
+    }
+    Ok(out)
+}
+
+impl MethodRow {
+    fn new(method: &str, m: &metrics::Metrics, time_ms: f64) -> Self {
+        Self {
+            method: method.to_string(),
+            objects: m.objects,
+            time_ms,
+            recall_percent: 100.0 * m.mask_recall,
+            precision_percent: 100.0 * m.mask_precision,
+            amplitude_mse: m.amplitude_mse,
+            pitch_cents: m.pitch_median_cents,
+        }
+    }
 }
 
 /// Runs `modalforge predictor sweep`.
