@@ -618,6 +618,59 @@ fn the_dataset_is_reproducible_and_resumes() {
         assert_eq!(record.family.held_out(), rel.starts_with("heldout"));
     }
     assert!(run(a.path()).contains("0 written, 3 kept"));
+    // Scored: the network, shape matching against the two training shapes and the coarse FEM
+    // answer, per family, and the methods' CSV that `chart --predictor` reads.
+    let csv = a.path().join("predictor.csv");
+    let weights = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/predictor/modenet.bpk");
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
+            "predictor",
+            "eval",
+            "--data",
+            a.path().to_str().unwrap(),
+            "--weights",
+            weights,
+        ];
+        args.extend_from_slice(extra);
+        let o = modalforge(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let out = eval(&["--csv", csv.to_str().unwrap()]);
+    for needle in [
+        "nearest of 2 training shapes",
+        "coarse FEM:",
+        "by family",
+        "1 objects",
+    ] {
+        assert!(out.contains(needle), "{needle}: {out}");
+    }
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    let methods: Vec<&str> = rows
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(
+        methods,
+        [
+            "network + pitch index",
+            "network alone",
+            "shape matching",
+            "coarse FEM"
+        ]
+    );
+    // The training split instead: its two objects, each its own training family.
+    let out = eval(&["--training-split"]);
+    assert!(
+        out.contains("2 objects") && !out.contains("nearest of"),
+        "{out}"
+    );
+    assert_eq!(
+        out.lines().filter(|l| l.starts_with("  ")).count(),
+        2,
+        "{out}"
+    );
 }
 
 /// Piped into a reader that quits (`modalforge modes ... | head -1`), the command ends quietly

@@ -6,7 +6,7 @@
 
 use super::chart::{methods_to_csv, MethodRow};
 use super::CliError;
-use modalforge::predictor::dataset::Record;
+use modalforge::predictor::dataset::{Family, Record};
 use modalforge::predictor::pitch_index::PitchIndex;
 use modalforge::predictor::{baseline, metrics, train};
 use std::fmt::Write as _;
@@ -104,6 +104,11 @@ pub struct EvalArgs {
     /// Also write each method's figures to this CSV, for `modalforge chart --predictor FILE`.
     #[arg(long, value_name = "FILE.csv")]
     pub csv: Option<PathBuf>,
+    /// Score the dataset's training split instead of its held-out one: objects of the training
+    /// families that training never saw (`dataset --count 200 --held-out 0 --seed 7`), so the
+    /// per-family figures cover every family. No shape matching then.
+    #[arg(long)]
+    pub training_split: bool,
 }
 
 /// Reads a pitch index file, or the shipped one.
@@ -224,23 +229,34 @@ fn decoded_split(data: &Path, held_out: bool, limit: usize) -> Result<Vec<Record
 pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
     let model = train::load_model(&args.weights, &device)?;
-    let held = decoded_split(&args.data, true, args.limit.unwrap_or(usize::MAX))?;
+    let held_out = !args.training_split;
+    let held = decoded_split(&args.data, held_out, args.limit.unwrap_or(usize::MAX))?;
     if held.is_empty() {
         return Err(CliError::Option(format!(
-            "no held-out records under {}: make them with `modalforge dataset --out {}`",
+            "no {} records under {}: make them with `modalforge dataset --out {}`",
+            if held_out {
+                "held-out"
+            } else {
+                "training-split"
+            },
             args.data.display(),
             args.data.display()
         )));
     }
     let pitch = read_pitch_index(args.pitch_index.as_deref())?;
     let one = thread_pool(Some(1))?;
-    let timed = |f: &(dyn Fn() -> metrics::Metrics + Sync)| {
+    let timed = |f: &(dyn Fn() -> Vec<metrics::ObjectScore> + Sync)| {
         let t0 = std::time::Instant::now();
-        let m = one.install(f);
-        (m, t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64)
+        let scores = one.install(f);
+        (scores, t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64)
     };
-    let (played, played_ms) = timed(&|| metrics::evaluate(&model, Some(&pitch), &held, &device));
-    let (alone, alone_ms) = timed(&|| metrics::evaluate(&model, None, &held, &device));
+    let (played_each, played_ms) =
+        timed(&|| metrics::evaluate_each(&model, Some(&pitch), &held, &device));
+    let (alone_each, alone_ms) = timed(&|| metrics::evaluate_each(&model, None, &held, &device));
+    let (played, alone) = (
+        metrics::summarise(&played_each),
+        metrics::summarise(&alone_each),
+    );
     let mut rows = vec![
         MethodRow::new("network + pitch index", &played, played_ms),
         MethodRow::new("network alone", &alone, alone_ms),
@@ -249,7 +265,11 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         "network:        {played} ({played_ms:.1} ms per shape scored with its pitch index, batches of 8, one thread)\n\
          network alone:  {alone} (the band frequencies from its own head)\n"
     );
-    let train = decoded_split(&args.data, false, usize::MAX)?;
+    let train = if held_out {
+        decoded_split(&args.data, false, usize::MAX)?
+    } else {
+        Vec::new()
+    };
     if train.is_empty() {
         let _ = writeln!(
             out,
@@ -274,31 +294,67 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     }
     // The product's progressive first answer, as a predictor: FEM at half the resolution.
     let element = modalforge::predictor::SHIPPED_LABEL_ELEMENT;
-    let (mut scores, mut times_ms, mut failed) = (Vec::new(), Vec::new(), 0);
+    let (mut coarse_each, mut times_ms) = (Vec::new(), Vec::new());
     one.install(|| {
         for r in &held {
             let t0 = std::time::Instant::now();
-            match baseline::coarse_fem(&r.grid, element) {
-                Ok(encoding) => {
-                    times_ms.push(t0.elapsed().as_secs_f64() * 1e3);
-                    scores.push(metrics::score(&encoding, &r.labels));
-                }
-                Err(_) => failed += 1,
-            }
+            let answer = baseline::coarse_fem(&r.grid, element);
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            coarse_each.push(answer.ok().map(|encoding| {
+                times_ms.push(ms);
+                metrics::score(&encoding, &r.labels)
+            }));
         }
     });
-    let coarse = metrics::summarise(&scores);
+    let failed = coarse_each.iter().filter(|s| s.is_none()).count();
+    let coarse = metrics::summarise(&coarse_each.iter().flatten().cloned().collect::<Vec<_>>());
     let mean_ms = times_ms.iter().sum::<f64>() / times_ms.len().max(1) as f64;
     times_ms.sort_by(f64::total_cmp);
     let median_ms = times_ms
         .get(times_ms.len() / 2)
         .copied()
         .unwrap_or(f64::NAN);
-    let _ = write!(
+    let _ = writeln!(
         out,
         "coarse FEM:     {coarse} (half resolution, {element}, {mean_ms:.1} ms per shape, median {median_ms:.1}; {failed} shapes without a half-resolution grid)"
     );
     rows.push(MethodRow::new("coarse FEM", &coarse, mean_ms));
+    // Per family, worst first (by the network's mask F1), the network beside the coarse FEM.
+    let mut families: Vec<(Family, metrics::Metrics, metrics::Metrics)> = Vec::new();
+    for family in Family::TRAIN.into_iter().chain(Family::HELD_OUT) {
+        let of = |each: &mut dyn Iterator<Item = Option<&metrics::ObjectScore>>| {
+            let picked: Vec<metrics::ObjectScore> = (held.iter().zip(each))
+                .filter(|(r, _)| r.family == family)
+                .filter_map(|(_, s)| s.cloned())
+                .collect();
+            metrics::summarise(&picked)
+        };
+        let network = of(&mut played_each.iter().map(Some));
+        if network.objects > 0 {
+            families.push((
+                family,
+                network,
+                of(&mut coarse_each.iter().map(Option::as_ref)),
+            ));
+        }
+    }
+    families.sort_by(|a, b| a.1.mask_f1().total_cmp(&b.1.mask_f1()));
+    out += "by family, worst first (network + pitch index | coarse FEM):";
+    for (family, network, coarse) in &families {
+        let _ = write!(
+            out,
+            "\n  {family:?}: {} objects, recall {:.1} %, precision {:.1} %, MSE {:.4}, pitch {:.1} cents | {:.1} %, {:.1} %, {:.4}, {:.1} cents",
+            network.objects,
+            100.0 * network.mask_recall,
+            100.0 * network.mask_precision,
+            network.amplitude_mse,
+            network.pitch_median_cents,
+            100.0 * coarse.mask_recall,
+            100.0 * coarse.mask_precision,
+            coarse.amplitude_mse,
+            coarse.pitch_median_cents
+        );
+    }
     if let Some(path) = &args.csv {
         std::fs::write(path, methods_to_csv(&rows)).map_err(|source| CliError::Io {
             action: "write",

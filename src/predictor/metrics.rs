@@ -34,6 +34,18 @@ pub struct Metrics {
     pub band_centre_median_cents: f64,
 }
 
+impl Metrics {
+    /// The masks' F1 score (harmonic mean of the mean recall and mean precision).
+    pub fn mask_f1(&self) -> f64 {
+        let (r, p) = (self.mask_recall, self.mask_precision);
+        if r + p > 0.0 {
+            2.0 * r * p / (r + p)
+        } else {
+            0.0
+        }
+    }
+}
+
 impl std::fmt::Display for Metrics {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
@@ -176,6 +188,16 @@ pub fn evaluate(
     records: &[Record],
     device: &Device,
 ) -> Metrics {
+    summarise(&evaluate_each(model, pitch, records, device))
+}
+
+/// [`evaluate`]'s per-object scores, in the order of `records`.
+pub fn evaluate_each(
+    model: &ModeNet,
+    pitch: Option<&PitchIndex>,
+    records: &[Record],
+    device: &Device,
+) -> Vec<ObjectScore> {
     let mut scores = Vec::with_capacity(records.len());
     for chunk in records.chunks(8) {
         let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
@@ -187,7 +209,7 @@ pub fn evaluate(
             scores.push(score(&p.to_encoding(), &r.labels));
         }
     }
-    summarise(&scores)
+    scores
 }
 
 /// The masks' operating points [`sweep`] tries: logit thresholds.
@@ -212,12 +234,7 @@ pub struct SweepPoint {
 impl SweepPoint {
     /// The masks' F1 score (harmonic mean of the mean recall and mean precision).
     pub fn f1(&self) -> f64 {
-        let (r, p) = (self.metrics.mask_recall, self.metrics.mask_precision);
-        if r + p > 0.0 {
-            2.0 * r * p / (r + p)
-        } else {
-            0.0
-        }
+        self.metrics.mask_f1()
     }
 }
 
