@@ -92,6 +92,11 @@ impl PredictedObject {
         self.eigenvalues.len()
     }
 
+    /// The band of each of [`PredictedObject::eigenvalues`].
+    pub fn bands(&self) -> &[usize] {
+        &self.bands
+    }
+
     /// The strike cell for a hit at `point_m` on a shape with voxel edge `voxel_size_m`: the
     /// cell it falls in, or the nearest struck cell. Never allocates.
     pub fn strike_cell(&self, point_m: [f64; 3], voxel_size_m: f64) -> Option<[usize; 3]> {

@@ -106,18 +106,12 @@ pub(super) fn neural_point(
                 .any(|(c, _)| (0..DIRECTIONS).any(|d| encoding.mask[c * per_cell + d * BANDS + b]))
         })
         .collect();
-    // A band's frequency for this shape: the reference-unit eigenvalue in the box's voxels,
-    // in the shape's voxels (Deep-Modal eq. 11), then steel at its voxel edge.
+    // Each played band's mode, in the shape's voxels (Deep-Modal eq. 11), at steel.
     let h = grid.voxel_size_m();
     let scale = steel.youngs_modulus_pa / (steel.density_kg_m3 * h * h);
-    let hz: Vec<f64> = played
-        .iter()
-        .filter_map(|&b| predicted.prediction.band_log_hz[b])
-        .map(|log_hz| {
-            let lambda = bands::reference_eigenvalue(10f64.powf(f64::from(log_hz)))
-                * predicted.box_per_voxel.powi(2);
-            (lambda * scale).sqrt() / std::f64::consts::TAU
-        })
+    let hz: Vec<f64> = (predicted.eigenvalues.iter().zip(predicted.bands()))
+        .filter(|(_, b)| played.contains(b))
+        .map(|(lambda, _)| (lambda * scale).sqrt() / std::f64::consts::TAU)
         .collect();
     let errors: Vec<f64> = (reference_hz.iter().take(CHART_MODES))
         .map(|&r| {
