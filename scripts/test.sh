@@ -17,11 +17,16 @@ cargo test --locked --release --no-run
 # The plugin's bundle and test binaries compile while the Rust tests run: those leave part of
 # a core idle (the soak plays two minutes in real time on about 3/4 of one), and cargo does not
 # lock the build directory while tests run. Measured: about 45 s less on this 2-core machine
-# (the bundle's 3 minutes of compiling stretch to 5 beside the tests).
-setsid bash -c 'bash scripts/bundle.sh && cargo test --locked --release -p modalforge-plugin --no-run' \
+# (the bundle's 3 minutes of compiling stretch to 5 beside the tests). It starts once the
+# tests do: cargo holds the build directory's lock while it checks the build, and a plugin
+# build started beside that check could take the lock first and hold the tests back for its
+# whole compile (2.5 minutes in one CI run).
+: >target/rust-tests.log
+setsid bash -c 'until grep -q "Running" target/rust-tests.log; do sleep 0.5; done
+  bash scripts/bundle.sh && cargo test --locked --release -p modalforge-plugin --no-run' \
   >target/plugin-build.log 2>&1 &
 plugin_build=$!
-if ! cargo test --locked --release; then
+if ! cargo test --locked --release 2>&1 | tee target/rust-tests.log; then
   kill -- "-$plugin_build" "-$venv" 2>/dev/null || true
   exit 1
 fi

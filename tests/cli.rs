@@ -491,15 +491,18 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     )
     .unwrap();
     let replot = dir.path().join("replot");
-    let out = modalforge(&[
-        "chart",
-        "--from",
-        csv_path.to_str().unwrap(),
-        "--predictor",
-        methods.to_str().unwrap(),
-        "--out",
-        replot.to_str().unwrap(),
-    ]);
+    let replot_with_methods = || {
+        modalforge(&[
+            "chart",
+            "--from",
+            csv_path.to_str().unwrap(),
+            "--predictor",
+            methods.to_str().unwrap(),
+            "--out",
+            replot.to_str().unwrap(),
+        ])
+    };
+    let out = replot_with_methods();
     assert!(
         out.status.success(),
         "{}",
@@ -513,15 +516,7 @@ fn chart_writes_a_csv_and_a_png_where_quadratic_elements_win() {
     assert_eq!(width, 3 * 600 + 40);
     // A malformed methods CSV is one clear line.
     std::fs::write(&methods, "method,time\n").unwrap();
-    let out = modalforge(&[
-        "chart",
-        "--from",
-        csv_path.to_str().unwrap(),
-        "--predictor",
-        methods.to_str().unwrap(),
-        "--out",
-        replot.to_str().unwrap(),
-    ]);
+    let out = replot_with_methods();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("predictor.csv"),
