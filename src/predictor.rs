@@ -18,6 +18,7 @@ pub mod metrics;
 pub mod network;
 pub mod object;
 pub mod pitch_index;
+pub mod ritz;
 pub mod train;
 
 use bands::{BandEncoding, BandMode, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
@@ -161,7 +162,10 @@ impl Predictor {
 
     /// Predicts a shape's modes: a shape outside the training sizes is resampled so its longest
     /// side fills the 32^3 box ([`object::input_side`]), then the network runs once on the
-    /// calling thread's rayon pool and the pitch index gives the bands' frequencies.
+    /// calling thread's rayon pool and the pitch index gives the bands' frequencies. A compact
+    /// shape whose spectrum starts at the top of the bands or above them gets its Ritz modes
+    /// from there up ([`ritz`]: a few ms more on one core, beside the network on two), where
+    /// the network would play nothing.
     pub fn predict(
         &self,
         grid: &crate::shape::VoxelGrid,
@@ -179,14 +183,22 @@ impl Predictor {
             boxed = crate::shape::ops::resampled(grid, side).ok_or(PredictorError::Empty)?;
             &boxed
         };
-        let mut prediction = predict_batch(&self.model, &[input], &self.device)
-            .pop()
-            .expect("one shape in, one answer out");
+        // The network and the Ritz modes side by side where the pool has two threads (the
+        // plugin's worker); one after the other on one.
+        let (mut prediction, ritz) = rayon::join(
+            || {
+                predict_batch(&self.model, &[input], &self.device)
+                    .pop()
+                    .expect("one shape in, one answer out")
+            },
+            || ritz::RitzModes::above_bands(input),
+        );
         if let Some(index) = &self.pitch {
             prediction.retune(index, input);
         }
         Ok(PredictedObject::new(
             prediction,
+            ritz,
             grid.dims(),
             side as f64 / longest as f64,
             grid.volume_voxels(),

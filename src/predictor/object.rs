@@ -23,9 +23,15 @@
 //! - **Strike.** The hit point selects the 2x2x2-voxel strike cell of the box it falls in (the
 //!   nearest struck cell when it falls outside the surface); a strike without a force
 //!   direction pushes towards the object's centre.
+//! - **Above the bands.** A compact shape ringing at the top of the band range or above it has
+//!   Ritz modes ([`super::ritz`]) from their lowest up, in place of the network's bands there.
+//!   They are voiced as FEM modes are: the mass-normalised mode shape at the hit point, along
+//!   the force (`phi . f`), moved from the box's voxels to the shape's (`lambda ~ h^-2`, and
+//!   `phi ~ h^-3/2` from `int rho phi^2 dV = 1`).
 
 use super::bands::{self, BANDS, CELLS_PER_AXIS, INPUT_SIDE};
 use super::network::MASK_CHANNELS;
+use super::ritz::RitzModes;
 use super::Prediction;
 use crate::basis::{Hit, StruckMode};
 use crate::material::DampedMode;
@@ -44,11 +50,14 @@ pub struct PredictedObject {
     pub volume_voxels: f64,
     /// Time the network took, ms.
     pub inference_ms: f64,
-    /// One mode per band predicted to hold one, ascending: reference-unit eigenvalues with the
-    /// shape's own voxel edge as the unit (as [`crate::basis::ModeBasis`] keeps them).
+    /// One mode per band predicted to hold one, then the Ritz modes, ascending: reference-unit
+    /// eigenvalues with the shape's own voxel edge as the unit (as
+    /// [`crate::basis::ModeBasis`] keeps them).
     pub eigenvalues: Vec<f64>,
-    /// The band of each mode.
+    /// The band of each of the network's modes (the first `bands.len()` eigenvalues).
     bands: Vec<usize>,
+    /// The Ritz modes that follow them (on the network's input grid), if the shape has any.
+    ritz: Option<RitzModes>,
 }
 
 /// Value of a mass-normalised mode at a free end, times `sqrt(m)`: the level estimate of the
@@ -57,9 +66,11 @@ const FREE_END_MODE_VALUE: f64 = 2.0;
 
 impl PredictedObject {
     /// Wraps the network's answer for a shape of `grid_dims` voxels that was resampled by
-    /// `box_per_voxel` (1 where it went in as it is).
+    /// `box_per_voxel` (1 where it went in as it is), with the Ritz modes of its input grid
+    /// where it has them (they replace the network's bands from their lowest one up).
     pub fn new(
         prediction: Prediction,
+        ritz: Option<RitzModes>,
         grid_dims: [usize; 3],
         box_per_voxel: f64,
         volume_voxels: f64,
@@ -67,15 +78,20 @@ impl PredictedObject {
     ) -> Self {
         // A box voxel is 1 / box_per_voxel of the shape's: lambda scales with h^-2.
         let to_shape = box_per_voxel * box_per_voxel;
-        let (bands, eigenvalues): (Vec<usize>, Vec<f64>) = prediction
+        let below = ritz.as_ref().map_or(BANDS, RitzModes::first_band);
+        let (bands, mut eigenvalues): (Vec<usize>, Vec<f64>) = prediction
             .band_log_hz
             .iter()
             .enumerate()
+            .take(below)
             .filter_map(|(b, lf)| {
                 let hz = 10f64.powf((*lf)? as f64);
                 Some((b, bands::reference_eigenvalue(hz) * to_shape))
             })
             .unzip();
+        if let Some(r) = &ritz {
+            eigenvalues.extend(r.eigenvalues.iter().map(|l| l * to_shape));
+        }
         Self {
             prediction,
             grid_dims,
@@ -84,6 +100,7 @@ impl PredictedObject {
             inference_ms,
             eigenvalues,
             bands,
+            ritz,
         }
     }
 
@@ -92,9 +109,15 @@ impl PredictedObject {
         self.eigenvalues.len()
     }
 
-    /// The band of each of [`PredictedObject::eigenvalues`].
+    /// The band of each of the network's modes, the first of
+    /// [`PredictedObject::eigenvalues`]; the Ritz modes follow them.
     pub fn bands(&self) -> &[usize] {
         &self.bands
+    }
+
+    /// How many of the modes are Ritz modes (the last ones).
+    pub fn ritz_count(&self) -> usize {
+        self.ritz.as_ref().map_or(0, RitzModes::len)
     }
 
     /// The strike cell for a hit at `point_m` on a shape with voxel edge `voxel_size_m`: the
@@ -136,12 +159,28 @@ impl PredictedObject {
         if !(norm.is_finite() && norm > 0.0) {
             return;
         }
+        let unit = direction.map(|d| d / norm);
+        let (network, ritz) = out.split_at_mut(self.bands.len().min(out.len()));
+        self.network_forces_into(cell, unit, network);
+        if let Some(modes) = &self.ritz {
+            // The hit in the box's voxels; phi from the box's voxel units to the shape's.
+            let at = hit.point_m.map(|p| p / voxel_size_m * self.box_per_voxel);
+            let to_shape = self.box_per_voxel.powf(1.5);
+            modes.forces_into(at, unit, ritz);
+            ritz.iter_mut().for_each(|f| *f *= to_shape);
+            // A compact solid's multiplets, voiced as one as FEM's are.
+            crate::basis::strike_align_unisons(&modes.eigenvalues, ritz);
+        }
+    }
+
+    /// The network's modes' forces for a strike at `cell` along `unit`: its relative gains,
+    /// levelled by the free-end estimate of the module docs.
+    fn network_forces_into(&self, cell: [usize; 3], unit: [f64; 3], out: &mut [f64]) {
         let c = CELLS_PER_AXIS;
         let outputs = self
             .prediction
             .cell_outputs(cell[0] + c * (cell[1] + c * cell[2]));
         // Relative gains (loudest axis strike's loudest mode: 1), as BandEncoding::strike.
-        let unit = direction.map(|d| d / norm);
         let gain = |b: usize| {
             bands::band_gain(
                 unit,

@@ -83,7 +83,8 @@ pub fn methods_from_csv(text: &str) -> Result<Vec<MethodRow>, String> {
 /// The shipped predictor on benchmark shape `name` (steel, `size_m`, at
 /// [`NEURAL_RESOLUTION`]): the mean and largest distance, in percent, from each of the
 /// reference's lowest [`CHART_MODES`] frequencies to the nearest frequency the predictor plays
-/// (a band whose mask is on at any strike of the shape), and the predictor's time.
+/// (a band whose mask is on at any strike of the shape, or a Ritz mode), and the predictor's
+/// time.
 pub(super) fn neural_point(
     predictor: &Predictor,
     name: &str,
@@ -109,9 +110,12 @@ pub(super) fn neural_point(
     // Each played band's mode, in the shape's voxels (Deep-Modal eq. 11), at steel.
     let h = grid.voxel_size_m();
     let scale = steel.youngs_modulus_pa / (steel.density_kg_m3 * h * h);
-    let hz: Vec<f64> = (predicted.eigenvalues.iter().zip(predicted.bands()))
-        .filter(|(_, b)| played.contains(b))
-        .map(|(lambda, _)| (lambda * scale).sqrt() / std::f64::consts::TAU)
+    // The network's modes in played bands, then every Ritz mode (compact shapes: a mode
+    // shape, heard wherever it is not at a node).
+    let network = predicted.bands().len();
+    let hz: Vec<f64> = (predicted.eigenvalues.iter().enumerate())
+        .filter(|&(i, _)| i >= network || played.contains(&predicted.bands()[i]))
+        .map(|(_, lambda)| (lambda * scale).sqrt() / std::f64::consts::TAU)
         .collect();
     let errors: Vec<f64> = (reference_hz.iter().take(CHART_MODES))
         .map(|&r| {
