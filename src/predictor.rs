@@ -164,8 +164,7 @@ impl Predictor {
     /// side fills the 32^3 box ([`object::input_side`]), then the network runs once on the
     /// calling thread's rayon pool and the pitch index gives the bands' frequencies. A compact
     /// shape whose spectrum starts at the top of the bands or above them gets its Ritz modes
-    /// from there up ([`ritz`]: a few ms more on one core, beside the network on two), where
-    /// the network would play nothing.
+    /// from there up ([`ritz`]: a few ms more), where the network would play nothing.
     pub fn predict(
         &self,
         grid: &crate::shape::VoxelGrid,
@@ -183,16 +182,10 @@ impl Predictor {
             boxed = crate::shape::ops::resampled(grid, side).ok_or(PredictorError::Empty)?;
             &boxed
         };
-        // The network and the Ritz modes side by side where the pool has two threads (the
-        // plugin's worker); one after the other on one.
-        let (mut prediction, ritz) = rayon::join(
-            || {
-                predict_batch(&self.model, &[input], &self.device)
-                    .pop()
-                    .expect("one shape in, one answer out")
-            },
-            || ritz::RitzModes::above_bands(input),
-        );
+        let mut prediction = predict_batch(&self.model, &[input], &self.device)
+            .pop()
+            .expect("one shape in, one answer out");
+        let ritz = ritz::RitzModes::above_bands(input);
         if let Some(index) = &self.pitch {
             prediction.retune(index, input);
         }

@@ -48,7 +48,7 @@ pub struct PredictedObject {
     pub box_per_voxel: f64,
     /// Filled volume of the shape, in its voxels.
     pub volume_voxels: f64,
-    /// Time the network took, ms.
+    /// Time the prediction took (the network, the pitch index and the Ritz modes), ms.
     pub inference_ms: f64,
     /// One mode per band predicted to hold one, then the Ritz modes, ascending: reference-unit
     /// eigenvalues with the shape's own voxel edge as the unit (as
@@ -113,11 +113,6 @@ impl PredictedObject {
     /// [`PredictedObject::eigenvalues`]; the Ritz modes follow them.
     pub fn bands(&self) -> &[usize] {
         &self.bands
-    }
-
-    /// How many of the modes are Ritz modes (the last ones).
-    pub fn ritz_count(&self) -> usize {
-        self.ritz.as_ref().map_or(0, RitzModes::len)
     }
 
     /// The strike cell for a hit at `point_m` on a shape with voxel edge `voxel_size_m`: the

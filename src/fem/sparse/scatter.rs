@@ -189,16 +189,21 @@ pub fn add_element_blocks(
             k[upper].iter_mut().zip(b).for_each(|(u, v)| *u += v);
             m[upper] += s;
             if j != i {
-                let lower = slots[j * n + i];
-                let lower_k = &mut k[lower];
-                for c in 0..3 {
-                    for d in 0..3 {
-                        lower_k[3 * c + d] += b[3 * d + c];
-                    }
-                }
-                m[lower] += s;
+                add_transposed(&mut k[slots[j * n + i]], b);
+                m[slots[j * n + i]] += s;
             }
             pair += 1;
+        }
+    }
+}
+
+/// Adds the transpose of a node pair's 3x3 block (row-major) into `lower`: the `(b, a)` block
+/// of a symmetric matrix from its `(a, b)` one.
+#[inline(always)]
+fn add_transposed(lower: &mut [f64; 9], block: &[f64; 9]) {
+    for c in 0..3 {
+        for d in 0..3 {
+            lower[3 * c + d] += block[3 * d + c];
         }
     }
 }
@@ -239,14 +244,8 @@ pub fn add_element_rows(
                 m[upper] += s;
             }
             if j != i && wanted(j) {
-                let lower = slots[j * n + i];
-                let lower_k = &mut k[lower];
-                for c in 0..3 {
-                    for d in 0..3 {
-                        lower_k[3 * c + d] += b[3 * d + c];
-                    }
-                }
-                m[lower] += s;
+                add_transposed(&mut k[slots[j * n + i]], b);
+                m[slots[j * n + i]] += s;
             }
         }
     }
