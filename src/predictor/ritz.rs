@@ -2,7 +2,7 @@
 //! over global polynomials, computed from the moments of its fills in a few milliseconds.
 //!
 //! Where it sits: [`super::Predictor::predict`] runs [`RitzModes::above_bands`] on the
-//! network's input beside the network. The network answers in 32 bands up to
+//! network's input after the network. The network answers in 32 bands up to
 //! [`HIGH_HZ`] at the reference (Deep-Modal's range), so a compact solid, whose spectrum
 //! starts at the top of that range or above it (a 32-voxel steel sphere at the reference rings
 //! from 9.9 kHz), got no band at all and the predictor played silence. For those shapes the
@@ -23,18 +23,19 @@
 //!
 //! Where it is worth playing, measured (stop 64, temporary harnesses, against hex27x2 FEM):
 //! - compact solids, degree 5: the lowest 15-20 modes of a sphere, a cube, a cylinder, an
-//!   ellipsoid and a 24 x 16 x 12 box within 0-2.2 % (a few modes at 3-4 %), in 4-6 ms;
+//!   ellipsoid and a 24 x 16 x 12 box within 0-2.2 % (a few modes at 3-4 %), in 5-7 ms;
 //! - not thin walls: global polynomials cannot bend a thin curved wall without stretching it,
 //!   nor move a handle on its own. The lowest mode, octaves above FEM (degree 4, median): solids
 //!   +0.02, plates with holes +0.04, differences +0.07, blobs +0.16, shells +0.82, unions
 //!   +0.83, cups with handles +1.33. Hence the gate on the mean wall ([`MIN_WALL_VOXELS`]).
 //! - As an input to the network (its lowest modes and per-band counts fed to the global
 //!   branch, fine-tuned from the shipped weights) it moved the held-out figures by under a
-//!   point (ARCHITECTURE.md, "The predictor's Ritz modes").
+//!   point (ARCHITECTURE.md, "Measured and not kept: the Ritz modes as the network's
+//!   input").
 
 use super::bands::{band_edges_hz, reference_hz, HIGH_HZ};
 use super::dataset::REFERENCE_POISSON;
-use crate::shape::VoxelGrid;
+use crate::shape::{ops, VoxelGrid};
 use faer::Mat;
 
 /// Highest total degree of the monomials in each displacement component: 56 monomials, a
@@ -50,12 +51,13 @@ pub const MAX_DEGREE: usize = 6;
 pub const RITZ_MODES: usize = 16;
 /// The Ritz modes take over where their lowest lies in this band or above (its lower edge,
 /// 7.0 kHz at the reference): the top of the network's range, where it predicts least
-/// surely (measured on 1,650 objects' labels, stop 64: from there up Ritz's bands scored
-/// within 2 points of the network's, and past the range the network has none).
+/// surely (measured on 1,650 objects' labels, stop 64, with degree 4's lowest 12 modes: from
+/// there up Ritz's bands scored within 2 points of the network's, and past the range the
+/// network has none).
 pub const TAKEOVER_BAND: usize = 28;
 /// The mean wall, `2 V / A` in voxels of the network's input, below which the Ritz modes are
-/// not trusted (thin walls come out stiff, above). The solids and blobs of the training set
-/// measure 3.3-6, shells and plates 0.8-2.
+/// not trusted (thin walls come out stiff, above). The training set's solids and blobs looked
+/// at measure 3.3-6, its shells 0.8-0.9, a 2-voxel plate 2.
 pub const MIN_WALL_VOXELS: f64 = 3.0;
 
 /// Monomials of total degree up to [`MAX_DEGREE`].
@@ -96,47 +98,10 @@ struct Fills {
 
 impl Fills {
     fn of(grid: &VoxelGrid) -> Self {
-        let mut values: Vec<f64> = grid
-            .occupancy()
-            .iter()
-            .map(|&o| f64::from(u8::from(o)))
-            .collect();
-        for (i, f) in grid.partial_voxels() {
-            values[i] = f.mean();
-        }
         Fills {
             dims: grid.dims(),
-            values,
+            values: ops::fill_fractions(grid),
         }
-    }
-
-    /// The mean wall `2 V / A` in voxels, as [`crate::engine::mean_wall_voxels`] counts it (the
-    /// area is the fills' jumps between neighbours, the grid's outside empty).
-    fn mean_wall(&self) -> f64 {
-        let [nx, ny, nz] = self.dims;
-        // A fill, 0 outside the grid.
-        let f = |x: usize, y: usize, z: usize| {
-            if x < nx && y < ny && z < nz {
-                self.values[x + nx * (y + ny * z)]
-            } else {
-                0.0
-            }
-        };
-        let (mut volume, mut area) = (0.0, 0.0);
-        for z in 0..nz {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let here = f(x, y, z);
-                    volume += here;
-                    area += (f(x + 1, y, z) - here).abs()
-                        + (f(x, y + 1, z) - here).abs()
-                        + (f(x, y, z + 1) - here).abs();
-                    // The faces on the grid's low sides.
-                    area += here * [x, y, z].iter().filter(|&&c| c == 0).count() as f64;
-                }
-            }
-        }
-        2.0 * volume / area.max(1.0)
     }
 }
 
@@ -380,7 +345,7 @@ impl RitzModes {
                 .is_some_and(|&l| reference_hz(l) >= from_hz)
         };
         let fills = Fills::of(grid);
-        if fills.mean_wall() < MIN_WALL_VOXELS {
+        if ops::mean_wall_of(fills.dims, &fills.values) < MIN_WALL_VOXELS {
             return None;
         }
         let screen = Self::solve_fills(&fills, SCREEN_DEGREE, REFERENCE_POISSON, 1).ok()?;
@@ -448,7 +413,6 @@ mod tests {
     use crate::basis::ModeBasis;
     use crate::eigen::{EigenOptions, ModeCount, SolverKind};
     use crate::fem::ElementKind;
-    use crate::shape::spec::ShapeSpec;
 
     fn fem(grid: &VoxelGrid, count: usize) -> Vec<f64> {
         let options = EigenOptions {
@@ -562,23 +526,6 @@ mod tests {
                 "{m}: {f} vs {want}"
             );
         }
-    }
-
-    #[test]
-    fn the_wall_is_the_engine_s() {
-        // Two counts of the same quantity: the dense one here against the coarse answer's
-        // (which reads every voxel through the grid), on a rasterised bowl with partial voxels.
-        let ShapeSpec::Primitive { shape, .. } = "bowl:d=12,wall=2".parse::<ShapeSpec>().unwrap()
-        else {
-            unreachable!()
-        };
-        let bowl = shape.rasterize(1.0, 0.01).unwrap();
-        assert!(bowl.partial_voxels().count() > 0);
-        let (ours, engine) = (
-            Fills::of(&bowl).mean_wall(),
-            crate::engine::mean_wall_voxels(&bowl),
-        );
-        assert!((ours - engine).abs() < 1e-12 * engine, "{ours} vs {engine}");
     }
 
     #[test]

@@ -242,26 +242,7 @@ pub(super) fn solve_coarse_grid(
     Ok(basis)
 }
 
-/// An object's mean wall thickness in voxels, `2 V / A`: twice its filled volume over its
-/// surface area, both counted on the voxel fills (the area as the fill's jumps between
-/// neighbouring voxels along each axis). A plate or a shell of thickness `t` gives about `t`.
-pub fn mean_wall_voxels(grid: &VoxelGrid) -> f64 {
-    let d = grid.dims().map(|v| v as isize);
-    let f = |x, y, z| grid.fraction(x, y, z);
-    let (mut volume, mut area) = (0.0, 0.0);
-    for z in -1..=d[2] {
-        for y in -1..=d[1] {
-            for x in -1..=d[0] {
-                let here = f(x, y, z);
-                volume += here;
-                area += (f(x + 1, y, z) - here).abs()
-                    + (f(x, y + 1, z) - here).abs()
-                    + (f(x, y, z + 1) - here).abs();
-            }
-        }
-    }
-    2.0 * volume / area.max(1.0)
-}
+pub use crate::shape::ops::mean_wall_voxels;
 
 /// `grid` resampled to half the resolution (the voxel edge doubles, the extent stays), its
 /// fills kept: each coarse voxel's sub-cells ([`SUBCELLS_PER_AXIS`] a side) hold the mean of
