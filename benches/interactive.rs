@@ -24,10 +24,13 @@
 //! solver's answers for the SciPy comparison (`scripts/scipy-compare.sh`).
 //!
 //! `-- --drag [INTERVAL_MS]` measures the engine as the plugin runs it: a drag of one-voxel
-//! strokes on the default object, one every INTERVAL_MS (default 60), through the plugin's
+//! strokes on the default object (or `--only NAME`'s), one every INTERVAL_MS (default 60),
+//! through the plugin's
 //! solver chain on the worker thread; for each stroke, the time from its request until an
-//! answer to it (or to a later stroke) plays, with the worker interrupting an exact solve that
-//! a newer stroke has made obsolete and, for comparison, with every solve run to its end; and
+//! answer to it (or to a later stroke) plays: with the worker leaving an exact solve that a
+//! newer stroke has made obsolete to end on its helper thread (the engine as the plugin runs
+//! it), and for comparison with the worker waiting for that solve's next poll (in place) and
+//! with every solve run to its end; and
 //! the carried answer's largest error after 1, 4 and 12 strokes from the exact answer before
 //! the drag (what a drag that keeps interrupting plays).
 
@@ -346,7 +349,16 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--drag") {
         let interval_ms = args.get(i + 1).and_then(|v| v.parse().ok()).unwrap_or(60);
-        drag::run(interval_ms);
+        // `--only NAME`: the first object whose name holds NAME, else the default object.
+        let only = args
+            .iter()
+            .position(|a| a == "--only")
+            .and_then(|i| args.get(i + 1));
+        let (name, spec, nu) = objects(only.is_none())
+            .into_iter()
+            .find(|(name, _, _)| only.is_none_or(|o| name.contains(o.as_str())))
+            .expect("--only: no object by that name");
+        drag::run(interval_ms, &name, &spec, nu);
         return;
     }
     if let Some(i) = args.iter().position(|a| a == "--scipy") {

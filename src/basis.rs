@@ -115,6 +115,10 @@ pub enum BasisError {
     /// The neural predictor could not answer.
     #[error("{0}")]
     Predictor(String),
+    /// A solver panicked on the engine's helper thread and is gone from the chain (a bug:
+    /// the other answers still play).
+    #[error("the solver stopped unexpectedly; the previous answer keeps playing")]
+    SolverLost,
 }
 
 impl BasisError {
@@ -194,6 +198,20 @@ impl ModeBasis {
         let t = std::time::Instant::now();
         let model = FemModel::assemble_cached(grid, element, poisson_ratio, cache)?;
         let assemble_ms = t.elapsed().as_secs_f64() * 1e3;
+        Self::solve_assembled(grid, model, assemble_ms, solver, options, stop)
+    }
+
+    /// The solve of [`ModeBasis::solve_cached`] on a `model` of `grid` assembled already
+    /// (in `assemble_ms`): a caller that shares its element cache holds it for the assembly
+    /// alone.
+    pub fn solve_assembled(
+        grid: &VoxelGrid,
+        model: FemModel,
+        assemble_ms: f64,
+        solver: SolverKind,
+        options: &EigenOptions,
+        stop: eigen::Stop,
+    ) -> Result<Self, BasisError> {
         stop.check()?;
         let solution = eigen::solve_until(&model, solver, options, stop)?;
         Ok(Self::from_parts(grid, model, solution, assemble_ms))

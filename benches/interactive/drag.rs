@@ -37,31 +37,66 @@ impl ModeSolver for Uninterrupted {
     }
 }
 
-pub fn run(interval_ms: u64) {
+/// A chain solver interrupted where it polls its stop, on the worker thread: the worker waits
+/// for the obsolete run's next poll, as it did before detachable solvers ran apart.
+struct InPlace(Box<dyn ModeSolver>);
+
+impl ModeSolver for InPlace {
+    fn name(&self) -> &'static str {
+        self.0.name()
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.0.solve(r)
+    }
+    fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
+        self.0.solve_until(r, stop)
+    }
+    fn applies(&self, r: &ObjectRequest) -> bool {
+        self.0.applies(r)
+    }
+    fn expected_error(&self, request: &ObjectRequest) -> Option<f64> {
+        self.0.expected_error(request)
+    }
+}
+
+/// How the worker treats an exact solve a newer stroke made obsolete.
+#[derive(Clone, Copy, PartialEq)]
+enum Obsolete {
+    /// Left to end by itself on the helper thread (the engine as it is).
+    LeftApart,
+    /// Interrupted at its next poll, the worker waiting for it.
+    InPlace,
+    /// Run to its end.
+    RunToEnd,
+}
+
+/// The drag on `spec` (named `name`, Poisson's ratio `nu`).
+pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
     let glass = Material::preset("glass").expect("glass");
     println!(
-        "\ndrag on the default object: {STROKES} one-voxel strokes every {interval_ms} ms, \
+        "\ndrag on {name} ({spec}): {STROKES} one-voxel strokes every {interval_ms} ms, \
          {MODES} modes, hex27x2; ms from a stroke to an answer to it (or a later one) playing"
     );
     println!(
         "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9}",
         "worker", "median", "p90", "max", "total", "interrupted", "answers"
     );
-    for interrupting in [true, false] {
+    for obsolete in [Obsolete::LeftApart, Obsolete::InPlace, Obsolete::RunToEnd] {
         let solvers = interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new())
             .into_iter()
-            .map(|s| match interrupting {
-                true => s,
-                false => Box::new(Uninterrupted(s)) as Box<dyn ModeSolver>,
+            .map(|s| match obsolete {
+                Obsolete::LeftApart => s,
+                Obsolete::InPlace => Box::new(InPlace(s)) as Box<dyn ModeSolver>,
+                Obsolete::RunToEnd => Box::new(Uninterrupted(s)) as Box<dyn ModeSolver>,
             })
             .collect();
-        let voicing = Voicing::from_material(&glass, glass.poisson_ratio).expect("voicing");
+        let voicing = Voicing::from_material(&glass, nu).expect("voicing");
         let (_audio, control) =
             Engine::start(48_000.0, EngineConfig::default(), voicing, solvers).expect("engine");
         let request = |grid| ObjectRequest {
             grid,
             element: ElementKind::Hex27Blocks,
-            poisson_ratio: glass.poisson_ratio,
+            poisson_ratio: nu,
             solver: SolverKind::Auto,
             options: EigenOptions {
                 count: ModeCount::First(MODES),
@@ -69,7 +104,7 @@ pub fn run(interval_ms: u64) {
             },
             recording: None,
         };
-        let mut grid = grid_of("bowl:d=16,wall=2", ElementKind::Hex27Blocks);
+        let mut grid = grid_of(spec, ElementKind::Hex27Blocks);
         control.request(request(grid.clone()));
         assert!(
             control.wait_idle(Duration::from_secs(60)),
@@ -107,10 +142,10 @@ pub fn run(interval_ms: u64) {
         let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
         println!(
             "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9}",
-            if interrupting {
-                "interrupting"
-            } else {
-                "run to end"
+            match obsolete {
+                Obsolete::LeftApart => "left apart",
+                Obsolete::InPlace => "in place",
+                Obsolete::RunToEnd => "run to end",
             },
             at(0.5),
             at(0.9),
@@ -120,20 +155,20 @@ pub fn run(interval_ms: u64) {
             control.status().solves - solves_before
         );
     }
-    drift(glass.poisson_ratio);
+    drift(spec, nu);
 }
 
 /// While a drag keeps interrupting the exact solve, each stroke's carried answer starts
 /// from the exact answer before the drag: its largest frequency error against a cold solve
 /// after 1, 4 and 12 strokes.
-fn drift(nu: f64) {
+fn drift(spec: &str, nu: f64) {
     let options = EigenOptions {
         count: ModeCount::First(MODES),
         ..Default::default()
     };
     let kind = ElementKind::Hex27Blocks;
     let solve = |g: &_| ModeBasis::solve(g, kind, nu, SolverKind::Auto, &options);
-    let mut grid = grid_of("bowl:d=16,wall=2", kind);
+    let mut grid = grid_of(spec, kind);
     let before = solve(&grid).expect("cold");
     let mut line =
         String::from("carried answer from the exact answer before the drag, largest error:");

@@ -15,11 +15,15 @@
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
+mod helper;
+
+use helper::{BroughtBack, Helper, Waited};
+
 use super::object::{ObjectModes, SolvedObject};
 use super::recorded::RecordedObject;
 use super::EngineStats;
 use crate::basis::{BasisError, ModeBasis};
-use crate::eigen::{EigenOptions, SolverKind, Stop};
+use crate::eigen::{EigenError, EigenOptions, SolverKind, Stop};
 use crate::fem::ElementKind;
 
 use crate::shape::VoxelGrid;
@@ -77,6 +81,14 @@ pub trait ModeSolver: Send {
     /// status line (`None`: exact to the solver tolerance).
     fn expected_error(&self, _request: &ObjectRequest) -> Option<f64> {
         None
+    }
+    /// Whether the worker runs this solver on its helper thread, where a run a newer edit made
+    /// obsolete can be left to end by itself (`worker/helper.rs`): for solvers with steps
+    /// too long to wait for that poll no stop inside them (a factorisation). Such a solver
+    /// must not hold a lock the chain's other solvers take for longer than a moment: they
+    /// run beside its obsolete run. Default: false, run on the worker thread.
+    fn detachable(&self) -> bool {
+        false
     }
 }
 
@@ -247,7 +259,8 @@ impl EngineControl {
         });
         let worker = Worker {
             shared: shared.clone(),
-            solvers,
+            solvers: solvers.into_iter().map(Some).collect(),
+            helper: None,
             to_audio,
             retired,
             pending: None,
@@ -349,7 +362,10 @@ impl Drop for EngineControl {
 
 struct Worker {
     shared: Arc<Shared>,
-    solvers: Vec<Box<dyn ModeSolver>>,
+    /// The chain; a slot is empty while its solver is away on the helper thread.
+    solvers: Vec<Option<Box<dyn ModeSolver>>>,
+    /// Where detachable solvers run, started with the first of them.
+    helper: Option<Helper>,
     to_audio: Producer<Box<SolvedObject>>,
     retired: Consumer<Box<SolvedObject>>,
     /// A solved object the full ring could not take yet (a newer one replaces it).
@@ -419,10 +435,22 @@ impl Worker {
                 // A newer edit is waiting: the slower solvers would answer an old question.
                 break;
             }
-            if !self.solvers[i].applies(request) {
+            if self
+                .helper
+                .as_ref()
+                .and_then(Helper::away)
+                .is_some_and(|away| away <= i)
+                && !self.bring_back_unless_superseded()
+            {
+                break;
+            }
+            let Some(solver) = &self.solvers[i] else {
+                continue; // lost to a panic on the helper thread
+            };
+            if !solver.applies(request) {
                 continue;
             }
-            let name = self.solvers[i].name();
+            let name = solver.name();
             let since = Instant::now();
             self.shared.set_state(SolveState::Solving {
                 solver: name,
@@ -434,24 +462,61 @@ impl Worker {
                 self.shared.status_changed();
                 break;
             }
-            let expected_error = self.solvers[i].expected_error(request);
+            let expected_error = self.solvers[i]
+                .as_ref()
+                .and_then(|s| s.expected_error(request));
             self.deliver(result, name, since, expected_error, serial);
         }
         self.shared.set_state(SolveState::Idle);
+    }
+
+    /// Puts the solver of a run the worker left back in its slot once the run has ended;
+    /// gives up waiting (false) if a newer request arrives first, which the chain then
+    /// answers from its start, beside the run still ending.
+    fn bring_back_unless_superseded(&mut self) -> bool {
+        loop {
+            let Some(helper) = self.helper.as_mut() else {
+                return true;
+            };
+            match helper.bring_back(helper::WAIT_POLL) {
+                BroughtBack::Solver(i, solver) => {
+                    self.solvers[i] = Some(solver);
+                    return true;
+                }
+                BroughtBack::Nothing => return true,
+                BroughtBack::NotYet => {
+                    let mb = lock(&self.shared.mailbox);
+                    if mb.request.is_some() || mb.shutdown {
+                        return false;
+                    }
+                }
+            }
+        }
     }
 
     /// Runs solver `i` on `request` (number `serial`), interrupted once the engine shuts down
     /// or a newer request waits that a solver before `i` in the chain answers (it will be
     /// heard sooner that way than after this solve; where none does, this answer is the next
     /// thing to play and is finished). The poll clones a newer request once and remembers
-    /// its verdict, so a solver may poll it every few milliseconds.
+    /// its verdict, so a solver may poll it every few milliseconds. A detachable solver runs
+    /// on the helper thread, and an interrupted run of it is left to end there by itself.
     fn solve_until_superseded(
         &mut self,
         i: usize,
         request: &ObjectRequest,
         serial: u64,
     ) -> Result<ObjectModes, BasisError> {
+        let detach = self.solvers[i].as_ref().is_some_and(|s| s.detachable());
+        if detach && self.helper.is_none() {
+            // Without a helper thread (the system refused one) it runs here.
+            self.helper = Helper::spawn().ok();
+        }
+        if detach && !self.bring_back_unless_superseded() {
+            // One run at a time on the helper; a newer request came while the last ended.
+            return Err(EigenError::Interrupted.into());
+        }
         let (earlier, rest) = self.solvers.split_at_mut(i);
+        let slot = &mut rest[0];
         let shared = &self.shared;
         let verdict = std::cell::Cell::new((serial, false));
         let poll = || {
@@ -466,11 +531,31 @@ impl Worker {
                     Some(r) => (mb.serial, r.clone()),
                 }
             };
-            let answered_sooner = earlier.iter().any(|s| s.applies(&request));
+            let answered_sooner = earlier.iter().flatten().any(|s| s.applies(&request));
             verdict.set((newer, answered_sooner));
             answered_sooner
         };
-        rest[0].solve_until(request, Stop::when(&poll))
+        let Some(solver) = slot.take() else {
+            return Err(BasisError::SolverLost);
+        };
+        let solver = match (detach, self.helper.as_mut()) {
+            (true, Some(helper)) => match helper.start(solver, request) {
+                Ok(()) => {
+                    return match helper.wait(i, poll) {
+                        Waited::Answered(solver, answer) => {
+                            *slot = Some(solver);
+                            answer
+                        }
+                        Waited::Left => Err(EigenError::Interrupted.into()),
+                        Waited::Lost => Err(BasisError::SolverLost),
+                    }
+                }
+                Err(solver) => solver,
+            },
+            _ => solver,
+        };
+        let solver = slot.insert(solver);
+        solver.solve_until(request, Stop::when(&poll))
     }
 
     /// Hands a solver's answer (begun at `since`) to the audio side and reports it.

@@ -166,6 +166,131 @@ fn a_slow_answer_made_obsolete_gives_way_to_a_faster_one() {
     }
 }
 
+/// A detachable exact answer with a step that cannot be cut: it waits for `gate` to open
+/// before its first poll of the stop, then counts how it ended and the thread it ran on.
+struct Stubborn {
+    gate: Arc<std::sync::atomic::AtomicBool>,
+    finished: Arc<AtomicU64>,
+    interrupted: Arc<AtomicU64>,
+    threads: Arc<std::sync::Mutex<Vec<String>>>,
+}
+
+impl ModeSolver for Stubborn {
+    fn name(&self) -> &'static str {
+        "stubborn"
+    }
+    fn detachable(&self) -> bool {
+        true
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, crate::eigen::Stop::NEVER)
+    }
+    fn solve_until(
+        &mut self,
+        r: &ObjectRequest,
+        stop: crate::eigen::Stop,
+    ) -> Result<ObjectModes, BasisError> {
+        let name = std::thread::current().name().unwrap_or("").to_string();
+        self.threads.lock().unwrap().push(name);
+        while !self.gate.load(Ordering::SeqCst) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        if let Err(e) = stop.check() {
+            self.interrupted.fetch_add(1, Ordering::SeqCst);
+            return Err(e.into());
+        }
+        self.finished.fetch_add(1, Ordering::SeqCst);
+        FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn an_edit_is_answered_while_an_obsolete_solve_finishes_an_uncut_step_apart() {
+    // The exact answer to the first edit is stuck in a step that polls no stop (as a
+    // factorisation is) when a second edit arrives. The faster solver's answer to the second
+    // is delivered while that step still runs, on the worker's helper thread; once the step
+    // ends the run sees its stop and gives up, and the exact answer to the second edit is
+    // solved and plays last. In place, the worker would wait for the step: the quick answer
+    // could not arrive while the gate is shut, and this test would fail on it.
+    let gate = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (finished, interrupted) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+    let threads = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (mut audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![
+            Box::new(Quick { applies: true }),
+            Box::new(Stubborn {
+                gate: gate.clone(),
+                finished: finished.clone(),
+                interrupted: interrupted.clone(),
+                threads: threads.clone(),
+            }),
+        ],
+    )
+    .unwrap();
+    let wait_for = |what: &dyn Fn(&WorkerStatus) -> bool| {
+        let t = std::time::Instant::now();
+        while !what(&control.status()) {
+            if t.elapsed() > Duration::from_secs(30) {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        true
+    };
+    control.request(request(bar(10), 10));
+    let stuck = wait_for(&|st| {
+        matches!(
+            st.state,
+            SolveState::Solving {
+                solver: "stubborn",
+                ..
+            }
+        )
+    });
+    control.request(request(bar(14), 10));
+    let answered_beside = stuck
+        && wait_for(&|st| {
+            st.playing
+                .as_ref()
+                .is_some_and(|p| (p.solver, p.request) == ("quick", 2))
+        });
+    // Whatever happened, let the stuck step end so the engine can shut down.
+    let still_stuck = interrupted.load(Ordering::SeqCst) + finished.load(Ordering::SeqCst) == 0;
+    gate.store(true, Ordering::SeqCst);
+    assert!(stuck, "the exact solve never started");
+    assert!(answered_beside, "the second edit waited for the stuck step");
+    assert!(
+        still_stuck,
+        "the stuck step ended before the quick answer was checked"
+    );
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let status = control.status();
+    assert_eq!(
+        (
+            finished.load(Ordering::SeqCst),
+            interrupted.load(Ordering::SeqCst),
+            status.interrupted
+        ),
+        (1, 1, 1)
+    );
+    let last = status.last.unwrap();
+    assert_eq!((last.solver, last.request), ("stubborn", 2));
+    assert!(
+        threads
+            .lock()
+            .unwrap()
+            .iter()
+            .all(|t| t == "modalforge-solve"),
+        "{:?}",
+        threads.lock().unwrap()
+    );
+    audio.process(&mut [0.0; 64], &[]);
+    assert_eq!(audio.object_extent(), Some(14));
+}
+
 /// A hollow box, walls two voxels thick (survives halving its resolution).
 fn thick_box(side: usize) -> VoxelGrid {
     let solid = VoxelGrid::from_fn([side, side, side], 0.01, |_, _, _| true).unwrap();

@@ -1,0 +1,178 @@
+//! The worker's helper thread, where a detachable solver runs ([`ModeSolver::detachable`]):
+//! the worker can stop waiting for a run that a newer edit made obsolete and answer that edit
+//! at once, while the obsolete run ends by itself at its next poll.
+//!
+//! Where it sits: [`super::Worker`] sends the chain's exact solver, the request and a stop
+//! flag here ([`Helper::start`]), then waits for the answer while it polls for newer
+//! requests ([`Helper::wait`]). Why: a solver polls its stop only between its steps, and
+//! some steps cannot be cut. A sparse Cholesky factorisation is one call into faer: 40-95 ms
+//! for the default object after a stroke that breaks its mirrors, measured in the worker
+//! during a drag (`cargo bench --bench interactive -- --drag 100`). Waited for in place, a
+//! stroke made during one was heard that much later than its own carried answer.
+//!
+//! The solver travels with the job and comes back with its answer; while it is away its slot
+//! in the chain is empty, and the worker brings it back ([`Helper::bring_back`]: the run, told
+//! to stop, ends at its next poll) before it runs that solver, or any other detachable one,
+//! again. An answer that comes back after the worker stopped waiting is dropped here: a newer
+//! edit's answers are already playing.
+
+use super::{ModeSolver, ObjectRequest};
+use crate::basis::BasisError;
+use crate::eigen::Stop;
+use crate::engine::object::ObjectModes;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// How often the worker polls for newer requests while a detached run is solving: the delay
+/// it adds to a stroke made during the run, against a lock and a compare every interval.
+pub(super) const WAIT_POLL: Duration = Duration::from_millis(1);
+
+/// A solver's answer, and the solver itself, back from the helper.
+type Done = (Box<dyn ModeSolver>, Result<ObjectModes, BasisError>);
+
+/// One run for the helper.
+struct Job {
+    solver: Box<dyn ModeSolver>,
+    request: ObjectRequest,
+    stop: Arc<AtomicBool>,
+}
+
+/// How a wait for a detached run ended.
+pub(super) enum Waited {
+    /// The run answered; its solver is back.
+    Answered(Box<dyn ModeSolver>, Result<ObjectModes, BasisError>),
+    /// The poll said stop: the run was told to stop and is left to end on the helper.
+    Left,
+    /// The helper thread is gone (the solver panicked): the solver is lost.
+    Lost,
+}
+
+/// The helper thread and the solver it holds (see the module docs).
+pub(super) struct Helper {
+    jobs: Option<Sender<Job>>,
+    done: Receiver<Done>,
+    thread: Option<JoinHandle<()>>,
+    /// A run the worker left: its solver's index in the chain and its stop flag (set).
+    away: Option<usize>,
+    /// The stop flag of the run in flight.
+    stop: Arc<AtomicBool>,
+}
+
+impl Helper {
+    /// Starts the helper thread.
+    pub(super) fn spawn() -> std::io::Result<Self> {
+        let (jobs, inbox) = mpsc::channel::<Job>();
+        let (outbox, done) = mpsc::channel::<Done>();
+        let thread = std::thread::Builder::new()
+            .name("modalforge-solve".into())
+            .spawn(move || {
+                while let Ok(Job {
+                    mut solver,
+                    request,
+                    stop,
+                }) = inbox.recv()
+                {
+                    let poll = || stop.load(Ordering::Acquire);
+                    let answer = solver.solve_until(&request, Stop::when(&poll));
+                    if outbox.send((solver, answer)).is_err() {
+                        return;
+                    }
+                }
+            })?;
+        Ok(Helper {
+            jobs: Some(jobs),
+            done,
+            thread: Some(thread),
+            away: None,
+            stop: Arc::new(AtomicBool::new(false)),
+        })
+    }
+
+    /// The index of the solver out on a run the worker left, if any.
+    pub(super) fn away(&self) -> Option<usize> {
+        self.away
+    }
+
+    /// Runs `solver` on `request` on the helper thread; hands the solver back if the helper
+    /// is gone. Bring any solver away back first ([`Helper::bring_back`]).
+    pub(super) fn start(
+        &mut self,
+        solver: Box<dyn ModeSolver>,
+        request: &ObjectRequest,
+    ) -> Result<(), Box<dyn ModeSolver>> {
+        debug_assert!(self.away.is_none(), "one run at a time");
+        self.stop = Arc::new(AtomicBool::new(false));
+        let job = Job {
+            solver,
+            request: request.clone(),
+            stop: self.stop.clone(),
+        };
+        match &self.jobs {
+            Some(jobs) => jobs.send(job).map_err(|e| e.0.solver),
+            None => Err(job.solver),
+        }
+    }
+
+    /// Waits for the run started last, calling `superseded` every [`WAIT_POLL`]; once it
+    /// answers true the run is told to stop and left (its solver `index` is then away).
+    pub(super) fn wait(&mut self, index: usize, superseded: impl Fn() -> bool) -> Waited {
+        loop {
+            match self.done.recv_timeout(WAIT_POLL) {
+                Ok((solver, answer)) => return Waited::Answered(solver, answer),
+                Err(RecvTimeoutError::Timeout) => {
+                    if superseded() {
+                        self.stop.store(true, Ordering::Release);
+                        self.away = Some(index);
+                        return Waited::Left;
+                    }
+                }
+                Err(RecvTimeoutError::Disconnected) => return Waited::Lost,
+            }
+        }
+    }
+
+    /// Waits up to `timeout` for the run the worker left to end; gives its solver back (its
+    /// answer is dropped).
+    pub(super) fn bring_back(&mut self, timeout: Duration) -> BroughtBack {
+        let Some(index) = self.away else {
+            return BroughtBack::Nothing;
+        };
+        match self.done.recv_timeout(timeout) {
+            Ok((solver, _)) => {
+                self.away = None;
+                BroughtBack::Solver(index, solver)
+            }
+            Err(RecvTimeoutError::Timeout) => BroughtBack::NotYet,
+            Err(RecvTimeoutError::Disconnected) => {
+                self.away = None;
+                BroughtBack::Nothing
+            }
+        }
+    }
+}
+
+/// What [`Helper::bring_back`] found.
+pub(super) enum BroughtBack {
+    /// The solver at this index in the chain, back.
+    Solver(usize, Box<dyn ModeSolver>),
+    /// The run has not ended yet.
+    NotYet,
+    /// No solver was away, or the helper is gone with it.
+    Nothing,
+}
+
+impl Drop for Helper {
+    fn drop(&mut self) {
+        // A run in flight was told to stop (the worker's poll answers true on shutdown) and
+        // ends at its next poll; the thread then sees its queue closed. Joined, so no solver
+        // code runs after the engine is gone (a plugin's library may be unloaded next).
+        self.stop.store(true, Ordering::Release);
+        self.jobs = None;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
