@@ -15,7 +15,7 @@
 //! Nice-plug's own background executor is deliberately not used (it can abort a host on
 //! unload; `../shared/notes/plugin.md`).
 
-mod helper;
+pub(super) mod helper;
 
 use helper::{BroughtBack, Helper, Waited};
 
@@ -377,6 +377,9 @@ impl Worker {
     fn run(mut self) {
         loop {
             self.housekeeping();
+            if self.helper.as_ref().is_some_and(Helper::idle) {
+                self.helper = None;
+            }
             let request = {
                 let mut mb = lock(&self.shared.mailbox);
                 mb.busy = false;

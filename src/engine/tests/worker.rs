@@ -291,6 +291,58 @@ fn an_edit_is_answered_while_an_obsolete_solve_finishes_an_uncut_step_apart() {
     assert_eq!(audio.object_extent(), Some(14));
 }
 
+/// A detachable solver that records the thread each run is on.
+struct Recorded {
+    threads: Arc<std::sync::Mutex<Vec<(std::thread::ThreadId, String)>>>,
+}
+
+impl ModeSolver for Recorded {
+    fn name(&self) -> &'static str {
+        "recorded"
+    }
+    fn detachable(&self) -> bool {
+        true
+    }
+    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        let thread = std::thread::current();
+        let name = thread.name().unwrap_or("").to_string();
+        self.threads.lock().unwrap().push((thread.id(), name));
+        FemSolver.solve(r)
+    }
+}
+
+#[test]
+fn the_helper_thread_serves_runs_in_a_row_and_ends_when_idle() {
+    // Two edits in a row run on one helper thread; after the helper's idle time with nothing
+    // to do the thread has ended (and its matrix-product workspace with it), and the next
+    // edit runs on a new one.
+    let threads = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let (_audio, control) = Engine::start(
+        FS,
+        EngineConfig::default(),
+        steel(),
+        vec![Box::new(Recorded {
+            threads: threads.clone(),
+        })],
+    )
+    .unwrap();
+    for len in [10, 11] {
+        control.request(request(bar(len), 10));
+        assert!(control.wait_idle(Duration::from_secs(60)));
+    }
+    std::thread::sleep(crate::engine::worker::helper::IDLE * 2 + Duration::from_millis(100));
+    control.request(request(bar(12), 10));
+    assert!(control.wait_idle(Duration::from_secs(60)));
+    let ids = threads.lock().unwrap().clone();
+    assert_eq!(ids.len(), 3);
+    assert!(
+        ids.iter().all(|(_, name)| name == "modalforge-solve"),
+        "{ids:?}"
+    );
+    assert_eq!(ids[0].0, ids[1].0, "runs in a row share the helper");
+    assert_ne!(ids[1].0, ids[2].0, "an idle helper ends");
+}
+
 /// A hollow box, walls two voxels thick (survives halving its resolution).
 fn thick_box(side: usize) -> VoxelGrid {
     let solid = VoxelGrid::from_fn([side, side, side], 0.01, |_, _, _| true).unwrap();

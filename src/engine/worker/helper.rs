@@ -24,11 +24,22 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// How often the worker polls for newer requests while a detached run is solving: the delay
 /// it adds to a stroke made during the run, against a lock and a compare every interval.
 pub(super) const WAIT_POLL: Duration = Duration::from_millis(1);
+
+/// How long the helper thread outlives its last run. Every thread that runs faer's matrix
+/// products keeps their workspace, twice the L3 cache (`private-gemm-x86`'s thread-local:
+/// 64 MB of heap on this project's machine, of which the soak saw about 15 MB resident), so
+/// an idle engine (a plugin instance nobody sculpts) hands the helper's back. Sculpting
+/// keeps it: strokes come seconds apart at most.
+#[cfg(not(test))]
+const IDLE: Duration = Duration::from_secs(5);
+/// [`IDLE`] in tests, which watch the thread end.
+#[cfg(test)]
+pub(crate) const IDLE: Duration = Duration::from_millis(300);
 
 /// A solver's answer, and the solver itself, back from the helper.
 type Done = (Box<dyn ModeSolver>, Result<ObjectModes, BasisError>);
@@ -59,6 +70,8 @@ pub(super) struct Helper {
     away: Option<usize>,
     /// The stop flag of the run in flight.
     stop: Arc<AtomicBool>,
+    /// When a run last started or came back.
+    used: Instant,
 }
 
 impl Helper {
@@ -88,12 +101,19 @@ impl Helper {
             thread: Some(thread),
             away: None,
             stop: Arc::new(AtomicBool::new(false)),
+            used: Instant::now(),
         })
     }
 
     /// The index of the solver out on a run the worker left, if any.
     pub(super) fn away(&self) -> Option<usize> {
         self.away
+    }
+
+    /// Whether no run has started or ended for [`IDLE`] and none is away: the worker then
+    /// drops the helper (the thread ends, and with it its matrix-product workspace).
+    pub(super) fn idle(&self) -> bool {
+        self.away.is_none() && self.used.elapsed() > IDLE
     }
 
     /// Runs `solver` on `request` on the helper thread; hands the solver back if the helper
@@ -104,6 +124,7 @@ impl Helper {
         request: &ObjectRequest,
     ) -> Result<(), Box<dyn ModeSolver>> {
         debug_assert!(self.away.is_none(), "one run at a time");
+        self.used = Instant::now();
         self.stop = Arc::new(AtomicBool::new(false));
         let job = Job {
             solver,
@@ -121,7 +142,10 @@ impl Helper {
     pub(super) fn wait(&mut self, index: usize, superseded: impl Fn() -> bool) -> Waited {
         loop {
             match self.done.recv_timeout(WAIT_POLL) {
-                Ok((solver, answer)) => return Waited::Answered(solver, answer),
+                Ok((solver, answer)) => {
+                    self.used = Instant::now();
+                    return Waited::Answered(solver, answer);
+                }
                 Err(RecvTimeoutError::Timeout) => {
                     if superseded() {
                         self.stop.store(true, Ordering::Release);
@@ -143,6 +167,7 @@ impl Helper {
         match self.done.recv_timeout(timeout) {
             Ok((solver, _)) => {
                 self.away = None;
+                self.used = Instant::now();
                 BroughtBack::Solver(index, solver)
             }
             Err(RecvTimeoutError::Timeout) => BroughtBack::NotYet,
