@@ -113,8 +113,9 @@ impl ModeSolver for IncrementalFemSolver {
         self.answers.get() != Answers::PredictorOnly
     }
 
-    /// Its factorisation is one uncut step (40-95 ms on the default object after a stroke
-    /// that breaks its mirrors, up to ~0.2 s on the large presets).
+    /// Its factorisation is one uncut step: 40-95 ms on the default object after a stroke
+    /// that breaks its mirrors, 0.5-0.7 s on the ceramic cup (measured in the worker during
+    /// `cargo bench --bench interactive -- --drag`).
     fn detachable(&self) -> bool {
         true
     }

@@ -5,16 +5,18 @@
 //! Where it sits: [`super::Worker`] sends the chain's exact solver, the request and a stop
 //! flag here ([`Helper::start`]), then waits for the answer while it polls for newer
 //! requests ([`Helper::wait`]). Why: a solver polls its stop only between its steps, and
-//! some steps cannot be cut. A sparse Cholesky factorisation is one call into faer: 40-95 ms
-//! for the default object after a stroke that breaks its mirrors, measured in the worker
-//! during a drag (`cargo bench --bench interactive -- --drag 100`). Waited for in place, a
-//! stroke made during one was heard that much later than its own carried answer.
+//! some steps cannot be cut. A sparse Cholesky factorisation is one call into faer: after a
+//! stroke that breaks an object's mirrors, 40-95 ms for the default object and 0.5-0.7 s for
+//! the ceramic cup, measured in the worker during a drag (`cargo bench --bench interactive --
+//! --drag 100`). Waited for in place, a stroke made during one was heard that much later
+//! than its own carried answer.
 //!
 //! The solver travels with the job and comes back with its answer; while it is away its slot
 //! in the chain is empty, and the worker brings it back ([`Helper::bring_back`]: the run, told
 //! to stop, ends at its next poll) before it runs that solver, or any other detachable one,
 //! again. An answer that comes back after the worker stopped waiting is dropped here: a newer
-//! edit's answers are already playing.
+//! edit's answers are already playing. The worker drops the helper (and the thread ends)
+//! after [`IDLE`] without a run.
 
 use super::{ModeSolver, ObjectRequest};
 use crate::basis::BasisError;
