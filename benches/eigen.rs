@@ -13,7 +13,7 @@ use criterion::{BenchmarkId, Criterion, Throughput};
 use faer::Par;
 use modalforge::eigen::factor::ShiftedCholesky;
 use modalforge::eigen::multigrid::Multigrid;
-use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind};
+use modalforge::eigen::{self, EigenOptions, ModeCount, SolverKind, Stop};
 use modalforge::fem::sparse::{self, RowBlock};
 use modalforge::fem::{ElementKind, FemModel};
 use modalforge::shape::primitives::Primitive;
@@ -90,24 +90,17 @@ fn kernels(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("symbolic_and_numeric", |b| {
         b.iter(|| {
-            ShiftedCholesky::from_blocks(
-                &bowl16.pattern,
-                &bowl16.k,
-                &bowl16.m,
-                shift,
-                &nodes,
-                Par::Seq,
-            )
-            .expect("factor")
+            ShiftedCholesky::from_blocks(&bowl16.pattern, &bowl16.k, &bowl16.m, shift, &nodes)
+                .expect("factor")
         })
     });
     group.bench_function("kept_symbolic", |b| {
-        b.iter(|| ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor"))
+        b.iter(|| ShiftedCholesky::new(&bowl16, shift, Stop::NEVER).expect("factor"))
     });
     group.finish();
     // One Lanczos block's triangular solves with that factor (the whole model's: a lone
     // stroke's exact answer solves it whole), on the packed panels (`eigen/factor/rows.rs`).
-    let mut llt = ShiftedCholesky::new(&bowl16, shift, Par::Seq).expect("factor");
+    let mut llt = ShiftedCholesky::new(&bowl16, shift, Stop::NEVER).expect("factor");
     let mut group = c.benchmark_group("solve_bowl16_hex27x2");
     let width = 8;
     // Each solve starts from the same block (solving in place again and again would scale it

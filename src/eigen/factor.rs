@@ -1,19 +1,22 @@
-//! The sparse Cholesky factorisation of the shifted stiffness `K - sigma M` (faer, supernodal),
-//! ordered by geometric nested dissection ([`crate::fem::ordering`]); the solves with it are
-//! this crate's own ([`rows`]: row-major blocks, a multiply-add per factor entry), with their
-//! scratch allocated once and reused (a solve allocates nothing).
+//! The sparse Cholesky factorisation of the shifted stiffness `K - sigma M` (supernodal),
+//! ordered by geometric nested dissection or minimum degree ([`crate::fem::ordering`]): faer's
+//! symbolic factorisation, this crate's numeric one ([`numeric`]: faer's algorithm, polling
+//! the caller's [`Stop`] every few milliseconds), and this crate's solves ([`rows`]: row-major
+//! blocks, a multiply-add per factor entry), with their scratch allocated once and reused (a
+//! solve allocates nothing).
 
+mod numeric;
 mod rows;
 
+use super::stop::Stop;
 use super::EigenError;
 use crate::buffer;
 use crate::fem::memo::Memo;
 use crate::fem::sparse::RowBlock;
 use crate::fem::sparse::{BlockMass, BlockPattern};
 use crate::fem::{ordering, sparse, FemModel};
-use faer::dyn_stack::MemStack;
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering};
-use faer::{MatMut, Par, Side};
+use faer::{MatMut, Side};
 use rows::SupernodalRows;
 use std::sync::Arc;
 
@@ -21,7 +24,7 @@ use std::sync::Arc;
 /// line); wider blocks are solved in chunks of this many columns.
 const CHUNK: usize = 8;
 
-/// Largest Cholesky factor accepted, in bytes (faer's values and the solves' packed copy, both
+/// Largest Cholesky factor accepted, in bytes (the factorisation's values and the solves' packed copy, both
 /// held while the copy is made): beyond it the solve would exhaust memory or take minutes; the
 /// error suggests LOBPCG or a coarser grid.
 pub const MAX_FACTOR_BYTES: usize = 6 << 30;
@@ -77,8 +80,12 @@ impl ShiftedCholesky {
     /// pattern and elimination order (a stroke inside a hex27x2 block that stays occupied,
     /// another Poisson's ratio, a shift) reuses it: the symbolic part is about 8 ms of the
     /// default object's 76-100 ms factorisation (`cargo bench --bench eigen -- factor_bowl16`).
-    pub fn new(model: &FemModel, shift: f64, par: Par) -> Result<Self, EigenError> {
+    /// `stop` is polled after the elimination order, after the matrix is permuted into it,
+    /// and through the numeric factorisation (every few milliseconds: [`numeric`]); a stop
+    /// returns [`EigenError::Interrupted`].
+    pub fn new(model: &FemModel, shift: f64, stop: Stop) -> Result<Self, EigenError> {
         let nodes = ordering::fill_reducing_for(model);
+        stop.check()?;
         let kept = (model.pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT);
         let mass = BlockMass::Scalar(&model.m);
         Self::factor(
@@ -88,7 +95,7 @@ impl ShiftedCholesky {
             &[],
             shift,
             &nodes,
-            par,
+            stop,
             kept,
         )
     }
@@ -101,7 +108,6 @@ impl ShiftedCholesky {
         m: &[f64],
         shift: f64,
         nodes: &[usize],
-        par: Par,
     ) -> Result<Self, EigenError> {
         Self::factor(
             pattern,
@@ -110,7 +116,7 @@ impl ShiftedCholesky {
             &[],
             shift,
             nodes,
-            par,
+            Stop::NEVER,
             None,
         )
     }
@@ -129,10 +135,11 @@ impl ShiftedCholesky {
         extra: &[(u32, u32, f64)],
         shift: f64,
         nodes: &[usize],
+        stop: Stop,
     ) -> Result<Self, EigenError> {
         let kept = (pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT_CLASSES);
         let mass = BlockMass::Diagonal(m);
-        Self::factor(pattern, k, mass, extra, shift, nodes, Par::Seq, kept)
+        Self::factor(pattern, k, mass, extra, shift, nodes, stop, kept)
     }
 
     /// [`ShiftedCholesky::from_blocks`], the symbolic factorisation taken from (and kept in)
@@ -145,7 +152,7 @@ impl ShiftedCholesky {
         extra: &[(u32, u32, f64)],
         shift: f64,
         nodes: &[usize],
-        par: Par,
+        stop: Stop,
         kept: Option<&SymbolicMemo>,
     ) -> Result<Self, EigenError> {
         let fail = |e: &dyn std::fmt::Debug| EigenError::Factorization(format!("{e:?}"));
@@ -163,6 +170,10 @@ impl ShiftedCholesky {
         }
         let mut a = sparse::permuted_shifted_csc(pattern, k, mass, shift, nodes, Side::Lower);
         subtract_extra(&mut a, extra, shift, &inv);
+        if let Err(e) = stop.check() {
+            recycle_csc(a);
+            return Err(e);
+        }
         let analyse = || {
             // The symbolic analysis reads the upper triangle.
             let upper = sparse::permuted_shifted_csc(pattern, k, mass, shift, nodes, Side::Upper);
@@ -188,7 +199,7 @@ impl ShiftedCholesky {
                 "faer returned a simplicial factor where a supernodal one was asked for".into(),
             ));
         };
-        // faer's values and their packed copy (`rows`) are both held while it is made.
+        // The factorisation's values and their packed copy (`rows`) are both held while it is made.
         let bytes = symbolic
             .len_val()
             .saturating_add(rows::packed_total(supernodal))
@@ -202,28 +213,22 @@ impl ShiftedCholesky {
         }
         let out_of_memory =
             |_| EigenError::Factorization("out of memory for the Cholesky factor".into());
-        // The values and the scratch come from the process's kept buffers where it has them
-        // (`crate::buffer`: a worker's next solve does not fault them in again).
-        // faer zeroes the values itself before it factors.
+        // The values come from the process's kept buffers where it has them (`crate::buffer`:
+        // a worker's next solve does not fault them in again); the factorisation clears each
+        // supernode's block before it fills it.
         let mut values = buffer::take_unfilled::<f64>(symbolic.len_val()).map_err(out_of_memory)?;
-        let scratch_req = symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default());
-        let scratch_len = scratch_req.unaligned_bytes_required().div_ceil(8);
-        let mut fac_scratch = buffer::take::<f64>(scratch_len);
-        fac_scratch
-            .try_reserve_exact(scratch_len)
-            .map_err(out_of_memory)?;
-        let factored = symbolic.factorize_numeric_llt(
-            &mut values,
-            a.as_ref(),
-            Side::Lower,
-            Default::default(),
-            par,
-            MemStack::new_any(&mut fac_scratch.spare_capacity_mut()[..scratch_len]),
-            Default::default(),
-        );
-        buffer::recycle(fac_scratch);
+        let factored =
+            numeric::factorize(supernodal, a.as_ref(), &mut values, stop).map_err(|e| match e {
+                numeric::NumericError::Interrupted => EigenError::Interrupted,
+                numeric::NumericError::NotPositive { column } => EigenError::Factorization(
+                    format!("K - shift M is not positive definite (pivot {column} of {n})"),
+                ),
+            });
         recycle_csc(a);
-        factored.map_err(|e| fail(&e))?;
+        if let Err(e) = factored {
+            buffer::recycle(values);
+            return Err(e);
+        }
         let (layout, packed) =
             SupernodalRows::new(supernodal, &values).map_err(|e| EigenError::Factorization(e.0))?;
         buffer::recycle(values);
@@ -439,7 +444,7 @@ mod tests {
                 &[],
                 shift,
                 nodes,
-                Par::Seq,
+                Stop::NEVER,
                 kept,
             )
             .expect("factor")
@@ -477,7 +482,7 @@ mod tests {
         for model in [bowl(), hex27_bowl()] {
             let n = model.dofs();
             let shift = -1e-6 * Operators::new(&model).scale;
-            let llt = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+            let llt = ShiftedCholesky::new(&model, shift, Stop::NEVER).expect("factor");
             let b = random_block(n, 8, 3);
             let rows = |b: &Mat<f64>| -> Vec<[f64; 8]> {
                 (0..n).map(|i| std::array::from_fn(|j| b[(i, j)])).collect()
@@ -507,14 +512,14 @@ mod tests {
     fn a_factor_packed_into_a_used_buffer_is_the_factor_packed_into_fresh_memory() {
         let model = hex27_bowl();
         let shift = -1e-6 * Operators::new(&model).scale;
-        let fresh = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+        let fresh = ShiftedCholesky::new(&model, shift, Stop::NEVER).expect("factor");
         let len = fresh.values.len();
         let mut took_a_used_one = false;
         for _ in 0..5 {
             let used: Vec<Vec<f64>> = (0..3).map(|_| vec![f64::NAN; len]).collect();
             let at: Vec<*const f64> = used.iter().map(|v| v.as_ptr()).collect();
             used.into_iter().for_each(buffer::recycle);
-            let again = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+            let again = ShiftedCholesky::new(&model, shift, Stop::NEVER).expect("factor");
             if at.contains(&again.values.as_ptr()) {
                 took_a_used_one = true;
                 assert_eq!(again.values.len(), len);
@@ -534,7 +539,7 @@ mod tests {
         for model in [bowl(), hex27_bowl()] {
             let n = model.dofs();
             let shift = -1e-6 * Operators::new(&model).scale;
-            let mut llt = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+            let mut llt = ShiftedCholesky::new(&model, shift, Stop::NEVER).expect("factor");
             // eps * sqrt(n) * a few hundred (the factor's longest columns): ~1e-11 (measured
             // on the hex8i bowl: 5e-17).
             let bound = f64::EPSILON * (n as f64).sqrt() * 500.0;

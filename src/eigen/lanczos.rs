@@ -171,7 +171,7 @@ pub fn solve_until(
     let ops = Operators::new(model);
     let t0 = Instant::now();
     let shift = -SHIFT_RELATIVE * ops.scale;
-    let mut llt = ShiftedCholesky::new(model, shift, Par::Seq)?;
+    let mut llt = ShiftedCholesky::new(model, shift, stop)?;
     stop.check()?;
     let mut solution = run_until(&ops, &mut llt, shift, options, stop)?;
     solution.timings.setup_ms = t0.elapsed().as_secs_f64() * 1e3 - solution.timings.iterate_ms;

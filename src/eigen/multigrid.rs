@@ -30,7 +30,6 @@ use crate::buffer::zeroed;
 use crate::fem::ordering::nested_dissection_of;
 use crate::fem::sparse::{self, BlockPattern, Blocks, MassBlocks, RowBlock, Scalar};
 use crate::fem::{ElementKind, FemModel, UnitElement};
-use faer::Par;
 use hierarchy::{assemble, coarsen, galerkin, hex27_to_hex8, prolongation};
 
 /// Coarsening stops once a level has at most this many nodes; that level is factored.
@@ -172,14 +171,8 @@ impl Multigrid {
         let ops = Operators::from_parts(&coarsest.pattern, &coarse_k, &coarse_m);
         let tau = super::lanczos::SHIFT_RELATIVE * ops.scale;
         let order = nested_dissection_of(&coarsest.coords, 1);
-        let factor = ShiftedCholesky::from_blocks(
-            &coarsest.pattern,
-            &coarse_k,
-            &coarse_m,
-            -tau,
-            &order,
-            Par::Seq,
-        )?;
+        let factor =
+            ShiftedCholesky::from_blocks(&coarsest.pattern, &coarse_k, &coarse_m, -tau, &order)?;
         let coarse = CoarseProblem {
             pattern: coarsest.pattern.clone(),
             k: coarse_k,

@@ -194,6 +194,7 @@ fn solve_classes(
             &class.mass_extra,
             shift,
             nodes,
+            stop,
         )?;
         stop.check()?;
         let count = match (kth_lowest(&solved, options.count), estimate) {

@@ -41,12 +41,13 @@ use transfer::{node_map, previous_columns, transfer_rows};
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
 use super::lobpcg::{self, rigid_fields};
+use super::stop::Stop;
 use super::{
     random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
     SolveTimings, SolverKind,
 };
 use crate::fem::FemModel;
-use faer::{Mat, MatRef, Par};
+use faer::{Mat, MatRef};
 use std::collections::HashSet;
 use std::time::Instant;
 
@@ -84,7 +85,7 @@ pub fn solve(
         return super::solve(next, SolverKind::Lanczos, options);
     }
     let shift = -SHIFT_RELATIVE * ops.scale;
-    let mut llt = ShiftedCholesky::new(next, shift, Par::Seq)?;
+    let mut llt = ShiftedCholesky::new(next, shift, Stop::NEVER)?;
     let columns = previous_columns(previous_solution, usize::MAX);
     let map = node_map(previous, next, offset);
     let carried = transfer_rows(previous, &columns, next, offset, &map, 0);

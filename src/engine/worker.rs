@@ -83,8 +83,9 @@ pub trait ModeSolver: Send {
         None
     }
     /// Whether the worker runs this solver on its helper thread, where a run a newer edit made
-    /// obsolete can be left to end by itself (`worker/helper.rs`): for solvers with a step
-    /// that polls no stop and is too long to wait for (a factorisation). Such a solver must
+    /// obsolete can be left to end by itself (`worker/helper.rs`): for solvers with steps that
+    /// poll no stop and are too long to wait for (an exact solve's elimination order and
+    /// assembly; its factorisation until stop 66). Such a solver must
     /// not hold a lock the chain's other solvers take for longer than a moment: they run
     /// beside its obsolete run. Default: false, run on the worker thread.
     fn detachable(&self) -> bool {

@@ -265,7 +265,6 @@ mod tests {
     use crate::eigen::lanczos::{self, SHIFT_RELATIVE};
     use crate::eigen::{EigenOptions, ModeCount, Operators, Stop};
     use crate::fem::{test_model, ElementKind};
-    use faer::Par;
 
     /// A bound midway across the first clear gap from mode `from` on (not inside a degenerate
     /// pair, whose copies may land on either side of a bound between them), and the number of
@@ -298,7 +297,7 @@ mod tests {
         let (low, low_count) = bound_after(e, 8);
         let (high, high_count) = bound_after(e, 30);
         let shift = -SHIFT_RELATIVE * ops.scale;
-        let mut llt = ShiftedCholesky::new(&model, shift, Par::Seq).expect("factor");
+        let mut llt = ShiftedCholesky::new(&model, shift, Stop::NEVER).expect("factor");
         let room = FirstRoom {
             rigid: 12,
             below: 2 * low_count + 12,

@@ -260,8 +260,16 @@ mod tests {
         let shift = -scale;
         let nodes: Vec<usize> = (0..sub.pattern.nodes()).rev().collect();
         let (k, m, extra) = (&sub.k, &sub.m, &sub.mass_extra);
-        let mut llt = ShiftedCholesky::for_class(&sub.pattern, k, m, extra, shift, &nodes)
-            .expect("the shifted half is positive definite");
+        let mut llt = ShiftedCholesky::for_class(
+            &sub.pattern,
+            k,
+            m,
+            extra,
+            shift,
+            &nodes,
+            crate::eigen::Stop::NEVER,
+        )
+        .expect("the shifted half is positive definite");
         let b = ops.random_block(1, 11);
         let mut x = b.clone();
         llt.solve_in_place(x.as_mut());

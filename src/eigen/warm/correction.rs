@@ -18,7 +18,7 @@ use super::super::factor::ShiftedCholesky;
 use super::super::{from_rows, to_rows, Operators};
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
-use faer::{Mat, MatRef, Par};
+use faer::{Mat, MatRef};
 
 /// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
 pub(super) struct Correction {
@@ -70,8 +70,7 @@ pub(super) fn local_correction(
     let pattern = BlockPattern { row_ptr, col };
     let coords: Vec<[i64; 3]> = patch.iter().map(|&v| lattice(v)).collect();
     let order = ordering::nested_dissection_of(&coords, order_p);
-    let mut factor =
-        ShiftedCholesky::from_blocks(&pattern, &kpp, &mpp, 0.0, &order, Par::Seq).ok()?;
+    let mut factor = ShiftedCholesky::from_blocks(&pattern, &kpp, &mpp, 0.0, &order).ok()?;
     let dofs: Vec<usize> = patch
         .iter()
         .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
