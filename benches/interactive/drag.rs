@@ -78,8 +78,8 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
          {MODES} modes, hex27x2; ms from a stroke to an answer to it (or a later one) playing"
     );
     println!(
-        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9}",
-        "worker", "median", "p90", "max", "total", "interrupted", "answers"
+        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9} {:>7}",
+        "worker", "median", "p90", "max", "total", "interrupted", "answers", "solve"
     );
     for obsolete in [Obsolete::LeftApart, Obsolete::InPlace, Obsolete::RunToEnd] {
         let solvers = interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new())
@@ -115,6 +115,10 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         let mut sent = Vec::new();
         let mut heard = vec![None; STROKES];
         let solves_before = control.status().solves;
+        // The carried answers' own time in the worker (`SolveReport::ms`: from the solver's
+        // start to its answer handed to the audio side), each report once.
+        let mut quick_ms = Vec::new();
+        let mut last_seen = None;
         while heard.iter().any(Option::is_none) {
             let due = start + Duration::from_millis(interval_ms * sent.len() as u64);
             if sent.len() < STROKES && Instant::now() >= due {
@@ -122,7 +126,16 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
                 control.request(request(grid.clone()));
                 sent.push(Instant::now());
             }
-            if let Some(playing) = control.status().playing {
+            let status = control.status();
+            if let Some(last) = status.last.filter(|l| l.error.is_none()) {
+                if last_seen != Some((last.request, last.solver)) {
+                    last_seen = Some((last.request, last.solver));
+                    if last.solver == "carried" && last.request > first {
+                        quick_ms.push(last.ms);
+                    }
+                }
+            }
+            if let Some(playing) = status.playing {
                 let answered = (playing.request - first) as usize;
                 for (k, h) in heard.iter_mut().enumerate().take(answered.min(sent.len())) {
                     if h.is_none() {
@@ -140,8 +153,9 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         let mut ms: Vec<f64> = heard.into_iter().flatten().collect();
         ms.sort_by(f64::total_cmp);
         let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
+        quick_ms.sort_by(f64::total_cmp);
         println!(
-            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9}",
+            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9} {:>7.0}",
             match obsolete {
                 Obsolete::LeftApart => "left apart",
                 Obsolete::InPlace => "in place",
@@ -152,7 +166,11 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
             at(1.0),
             total,
             control.status().interrupted,
-            control.status().solves - solves_before
+            control.status().solves - solves_before,
+            quick_ms
+                .get(quick_ms.len() / 2)
+                .copied()
+                .unwrap_or(f64::NAN)
         );
     }
     drift(spec, nu);
