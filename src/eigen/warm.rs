@@ -228,20 +228,6 @@ pub fn ritz(
     }
     let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
-    // The Ritz vectors, `V = X C_x + Delta C_d`. Their residuals are not computed (`NaN`, as
-    // for a predicted answer): `K V` and `M V` would cost two more dense products over the
-    // whole block, as long as the rest of this answer on a large object, for a figure nothing
-    // reads (the answer plays until the exact one lands; its error is the status line's).
-    let c_x = c.get(..w, ..);
-    let mut vectors = x * c_x;
-    if let Some(cor) = &correction {
-        let local = &cor.delta * c.get(w.., ..);
-        for (i, &d) in cor.dofs.iter().enumerate() {
-            for j in 0..want {
-                vectors[(d, j)] += local[(i, j)];
-            }
-        }
-    }
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, f64::NAN)).collect();
     let sel = select(&ops, &pairs, ModeCount::First(count));
     if sel.rigid != previous_solution.rigid_modes {
@@ -251,24 +237,46 @@ pub fn ritz(
             previous_solution.rigid_modes, sel.rigid
         )));
     }
-    let timings = SolveTimings {
-        setup_ms: 0.0,
-        iterate_ms: t0.elapsed().as_secs_f64() * 1e3,
+    // The Ritz vectors, `V = X C_x + Delta C_d`, formed straight into the answer's kept and
+    // rigid columns (an answer that is not exact keeps no guards: it is never a warm start
+    // itself). Their residuals are not computed (`NaN`, as for a predicted answer): `K V` and
+    // `M V` would cost two more dense products over the whole block, as long as the rest of
+    // this answer on a large object, for a figure nothing reads (the answer plays until the
+    // exact one lands; its error is the status line's).
+    let vectors_of = |cols: &[usize]| {
+        let c_x = Mat::from_fn(w, cols.len(), |i, j| c[(i, cols[j])]);
+        let mut v = x * &c_x;
+        if let Some(cor) = &correction {
+            let c_d = Mat::from_fn(cor.delta.ncols(), cols.len(), |i, j| c[(w + i, cols[j])]);
+            let local = &cor.delta * &c_d;
+            for (i, &d) in cor.dofs.iter().enumerate() {
+                for j in 0..cols.len() {
+                    v[(d, j)] += local[(i, j)];
+                }
+            }
+        }
+        v
     };
-    let mut out = solution(
-        &pairs,
-        &sel,
-        vectors.as_ref(),
-        timings,
-        0,
-        SolverKind::Lobpcg,
-    );
-    out.warm_start = true;
-    // An approximate answer is never a warm start itself.
-    out.guard_vectors = Mat::zeros(n, 0);
-    out.guard_eigenvalues.clear();
-    out.guard_residuals.clear();
-    Ok(out)
+    let kept: Vec<usize> = sel.keep.iter().map(|&i| pairs[i].1).collect();
+    // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
+    let rigid: Vec<usize> = pairs.iter().take(sel.rigid).map(|p| p.1).collect();
+    Ok(EigenSolution {
+        eigenvalues: sel.keep.iter().map(|&i| pairs[i].0).collect(),
+        vectors: vectors_of(&kept),
+        residuals: vec![f64::NAN; kept.len()],
+        rigid_modes: sel.rigid,
+        rigid_vectors: vectors_of(&rigid),
+        guard_vectors: Mat::zeros(n, 0),
+        guard_eigenvalues: Vec::new(),
+        guard_residuals: Vec::new(),
+        timings: SolveTimings {
+            setup_ms: 0.0,
+            iterate_ms: t0.elapsed().as_secs_f64() * 1e3,
+        },
+        iterations: 0,
+        solver: SolverKind::Lobpcg,
+        warm_start: true,
+    })
 }
 
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
