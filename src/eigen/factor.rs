@@ -24,9 +24,9 @@ use std::sync::Arc;
 /// line); wider blocks are solved in chunks of this many columns.
 const CHUNK: usize = 8;
 
-/// Largest Cholesky factor accepted, in bytes (the factorisation's values and the solves' packed copy, both
-/// held while the copy is made): beyond it the solve would exhaust memory or take minutes; the
-/// error suggests LOBPCG or a coarser grid.
+/// Largest Cholesky factor accepted, in bytes (the factorisation's values and the solves'
+/// packed copy, both held while the copy is made): beyond it the solve would exhaust memory or
+/// take minutes; the error suggests LOBPCG or a coarser grid.
 pub const MAX_FACTOR_BYTES: usize = 6 << 30;
 
 /// Patterns whose symbolic factorisation [`ShiftedCholesky::new`] keeps: the last object's
@@ -199,7 +199,8 @@ impl ShiftedCholesky {
                 "faer returned a simplicial factor where a supernodal one was asked for".into(),
             ));
         };
-        // The factorisation's values and their packed copy (`rows`) are both held while it is made.
+        // The factorisation's values and their packed copy (`rows`) are both held while it is
+        // made.
         let bytes = symbolic
             .len_val()
             .saturating_add(rows::packed_total(supernodal))

@@ -1,5 +1,5 @@
 //! The numeric supernodal Cholesky factorisation `A = L L^T`, this crate's own so that a
-//! caller can stop it between supernodes.
+//! caller can stop it every few milliseconds.
 //!
 //! Where it sits: [`super::ShiftedCholesky`] takes faer's symbolic factorisation (the
 //! supernodes and their row patterns, [`SymbolicSupernodalCholesky`]) and fills the numeric
@@ -9,7 +9,9 @@
 //! factorisation of the whole object (the ceramic cup's 0.5-0.7 s in the worker), which a
 //! newer stroke could not end: it ran on beside the newer stroke's answer, sharing the memory
 //! bus (ARCHITECTURE.md, "An obsolete exact solve gives way"). This one polls a [`Stop`]
-//! before each supernode.
+//! before each update of a supernode by an earlier one and between panels of a wide
+//! supernode ([`PANEL`]): on the cup's whole factor the longest step between two polls is
+//! about 15 ms.
 //!
 //! The algorithm is faer's (`factorize_supernodal_numeric_llt`, left-looking, after CHOLMOD:
 //! Chen, Davis, Hager and Rajamanickam, ACM TOMS 35(3), 2008): for each supernode `s` in
@@ -96,7 +98,7 @@ impl Descendants {
 /// Fills `values` (faer's layout for `symbolic`, `symbolic.len_val()` entries) with the
 /// Cholesky factor of `a_lower` (the lower triangle of a symmetric positive definite matrix,
 /// already in elimination order: `symbolic` was made with the identity ordering), polling
-/// `stop` before each supernode.
+/// `stop` before each descendant's update and between the panels of [`factor_block`].
 pub(super) fn factorize(
     symbolic: &SymbolicSupernodalCholesky<usize>,
     a_lower: SparseColMatRef<'_, usize, f64>,
@@ -122,10 +124,21 @@ pub(super) fn factorize(
         Par::Seq,
         Default::default(),
     ));
-    // The update of one descendant, and where each of its rows goes in `s`'s block.
-    // (Kept between factorisations, `crate::buffer`: the largest is megabytes, which a fresh
-    // allocation would fault in page by page.)
-    let mut update: Vec<f64> = buffer::take(0);
+    // The update of one descendant (sized once for the largest), and where each of its rows
+    // goes in `s`'s block. Kept between factorisations (`crate::buffer`): the largest is
+    // megabytes, which a fresh allocation would fault in page by page.
+    let largest = (0..ns)
+        .flat_map(|s| descendants.of(s).iter().map(move |&d| (s, d as usize)))
+        .map(|(s, d)| {
+            let d_pattern = symbolic.supernode(d).pattern();
+            let first = d_pattern.partition_point(|&r| r < begin[s]);
+            let mid = d_pattern[first..].partition_point(|&r| r < end[s]);
+            (d_pattern.len() - first) * mid
+        })
+        .max()
+        .unwrap_or(0);
+    let mut update: Vec<f64> = buffer::take(largest);
+    update.resize(largest, 0.0);
     let mut to_row: Vec<usize> = Vec::new();
     for s in 0..ns {
         let (s_start, s_end) = (begin[s], end[s]);
@@ -170,9 +183,7 @@ pub(super) fn factorize(
             let below = d_pattern.len() - first;
             let ld_mid_bot = ld.subrows(d_cols + first, below);
             let ld_mid = ld_mid_bot.subrows(0, mid);
-            update.clear();
-            update.resize(below * mid, 0.0);
-            let w = MatMut::from_column_major_slice_mut(&mut update, below, mid);
+            let w = MatMut::from_column_major_slice_mut(&mut update[..below * mid], below, mid);
             // The rows in `s`'s columns give the lower triangle of a square block (the upper
             // one is never read); the rows below them a full block.
             let (w_mid, w_bot) = w.split_at_row_mut(mid);
@@ -203,7 +214,7 @@ pub(super) fn factorize(
                     local[r]
                 }
             }));
-            scatter_subtract(ls, s_rows, &update, &to_row, mid);
+            scatter_subtract(ls, s_rows, &update[..below * mid], &to_row, mid);
         }
         let block = MatMut::from_column_major_slice_mut(ls, s_rows, s_cols);
         if let Err(e) = factor_block(block, s_start, MemStack::new(&mut stack_buf), stop) {
@@ -326,21 +337,15 @@ mod tests {
     use crate::eigen::Operators;
     use crate::fem::sparse::{permuted_shifted_csc, BlockMass};
     use crate::fem::{ordering, ElementKind, FemModel};
-    use crate::shape::spec::ShapeSpec;
     use faer::sparse::linalg::cholesky::SymmetricOrdering;
     use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
     use faer::sparse::SparseColMat;
     use faer::Side;
     use std::cell::Cell;
 
-    /// A bowl of diameter `d` voxels (partial voxels) of `kind` elements.
+    /// A bowl of diameter `d` voxels, wall 2, of `kind` elements.
     fn bowl(d: f64, kind: ElementKind) -> FemModel {
-        let spec: ShapeSpec = format!("bowl:d={d},wall=2").parse().expect("spec");
-        let ShapeSpec::Primitive { shape, .. } = spec else {
-            panic!("a primitive")
-        };
-        let grid = shape.rasterize(1.0, 1.0).expect("grid");
-        FemModel::assemble(&grid, kind, 0.3).expect("model")
+        crate::fem::test_model(&format!("bowl:d={d},wall=2"), kind, 0.3)
     }
 
     /// `K - shift M` of `model` in nested-dissection order (its lower triangle) and its

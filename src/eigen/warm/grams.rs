@@ -161,26 +161,20 @@ pub(super) fn grams(
         .map(|k| x_rows[k / no * w + others[k % no]])
         .collect();
     let mo = ops.rows_product(Which::M, &xo, no);
-    // The rigid fields' images are zero (they lead `others`): only the rest are multiplied.
+    // The rigid fields' images are zero (they lead `others`): only the rest are multiplied
+    // (none, where every carried mode and guard converged), their Gram columns beside zeros.
     let rigid = others.iter().take_while(|&&j| j < fields).count();
-    let mut ko = vec![0.0; n * no];
+    let mut k_cross = Mat::<f64>::zeros(w, no);
     if rigid < no {
         let nk = no - rigid;
         let xk: Vec<f64> = (0..n * nk)
             .map(|k| xo[k / nk * no + rigid + k % nk])
             .collect();
         let kk = ops.rows_product(Which::K, &xk, nk);
-        for (row, images) in ko.chunks_exact_mut(no).zip(kk.chunks_exact(nk)) {
-            row[rigid..].copy_from_slice(images);
-        }
+        k_cross
+            .get_mut(.., rigid..)
+            .copy_from(cross_rows(x_rows, w, &kk, nk));
     }
-    // `X^T K r = 0` for the rigid fields: where they are all that is multiplied out (every
-    // carried mode and guard converged), the K side has no product to form.
-    let k_cross = if rigid < no {
-        cross_rows(x_rows, w, &ko, no)
-    } else {
-        Mat::zeros(w, no)
-    };
     let m_cross = cross_rows(x_rows, w, &mo, no);
     // The related block: the previous Grams, plus the new rows near the edit, less the previous
     // rows on `left`.
