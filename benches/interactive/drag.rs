@@ -160,8 +160,7 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         }
         let total = start.elapsed().as_secs_f64() * 1e3;
         // The last stroke's exact solve is still running: wait for it, or it would run beside
-        // the next way's drag (which then lost 5-25 ms of median on the cup in stop 66's runs,
-        // whichever way came second).
+        // the next way's first strokes.
         assert!(
             control.wait_idle(Duration::from_secs(60)),
             "the drag's last solve"
