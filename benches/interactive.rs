@@ -23,16 +23,19 @@
 //! NAME (`-- --only cup`); `-- --scipy DIR` exports the matrices and this
 //! solver's answers for the SciPy comparison (`scripts/scipy-compare.sh`).
 //!
-//! `-- --drag [INTERVAL_MS]` measures the engine as the plugin runs it: a drag of one-voxel
-//! strokes on the default object (or `--only NAME`'s), one every INTERVAL_MS (default 60),
-//! through the plugin's
-//! solver chain on the worker thread; for each stroke, the time from its request until an
-//! answer to it (or to a later stroke) plays: with the worker leaving an exact solve that a
-//! newer stroke has made obsolete to end on its helper thread (the engine as the plugin runs
-//! it), and for comparison with the worker waiting for that solve's next poll (in place) and
-//! with every solve run to its end; and
-//! the carried answer's largest error after 1, 4 and 12 strokes from the exact answer before
-//! the drag (what a drag that keeps interrupting plays).
+//! `-- --drag [INTERVAL_MS] [--strokes K]` measures the engine as the plugin runs it: a drag
+//! of K (default 24) one-voxel strokes on the default object (or `--only NAME`'s), one every
+//! INTERVAL_MS (default 60), through the plugin's solver chain on the worker thread; for each
+//! stroke, the time from its request until an answer to it (or to a later stroke) plays, the
+//! largest frequency error of each carried answer played against the exact modes of its
+//! shape, and the time from the last stroke to its exact answer playing: with the worker
+//! leaving an exact solve that a newer stroke has made obsolete on its helper thread (stopped
+//! at its next poll, or finished when the solver asks: the engine as the plugin runs it), and
+//! for comparison with every obsolete run stopped (the engine before the exact solver
+//! finished some), with the worker waiting for that solve's next poll (in place) and with
+//! every solve run to its end; and the carried answer's largest error after 1, 4 and 12
+//! strokes from the exact answer before the drag (what a drag that keeps interrupting played
+//! before).
 
 use modalforge::basis::ModeBasis;
 use modalforge::eigen::{EigenOptions, ModeCount, SolverKind, Stop};
@@ -358,7 +361,13 @@ fn main() {
             .into_iter()
             .find(|(name, _, _)| only.is_none_or(|o| name.contains(o.as_str())))
             .expect("--only: no object by that name");
-        drag::run(interval_ms, &name, &spec, nu);
+        let strokes = args
+            .iter()
+            .position(|a| a == "--strokes")
+            .and_then(|i| args.get(i + 1))
+            .map(|k| k.parse().expect("--strokes K"))
+            .unwrap_or(drag::STROKES);
+        drag::run(interval_ms, strokes, &name, &spec, nu);
         return;
     }
     if let Some(i) = args.iter().position(|a| a == "--scipy") {

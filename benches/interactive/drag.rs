@@ -12,44 +12,30 @@ use modalforge::fem::ElementKind;
 use modalforge::material::Material;
 use std::time::{Duration, Instant};
 
-/// Strokes in one drag.
-const STROKES: usize = 12;
+/// Strokes in one drag, unless `--strokes K` says otherwise.
+pub const STROKES: usize = 24;
 
-/// A chain solver that ignores the worker's stop, as every solver did before the worker
-/// could interrupt them: the comparison.
-struct Uninterrupted(Box<dyn ModeSolver>);
+/// Strokes after which [`drift`] measures the carried answer from the exact answer before
+/// the drag.
+const DRIFT_AT: [usize; 3] = [1, 4, 12];
 
-impl ModeSolver for Uninterrupted {
+/// A chain solver run one of the older ways ([`Obsolete`], other than the engine's own).
+struct Wrapped(Box<dyn ModeSolver>, Obsolete);
+
+impl ModeSolver for Wrapped {
     fn name(&self) -> &'static str {
         self.0.name()
     }
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         self.0.solve(r)
     }
-    fn solve_until(&mut self, r: &ObjectRequest, _: Stop) -> Result<ObjectModes, BasisError> {
-        self.0.solve(r)
-    }
-    fn applies(&self, r: &ObjectRequest) -> bool {
-        self.0.applies(r)
-    }
-    fn expected_error(&self, request: &ObjectRequest) -> Option<f64> {
-        self.0.expected_error(request)
-    }
-}
-
-/// A chain solver interrupted where it polls its stop, on the worker thread: the worker waits
-/// for the obsolete run's next poll, as it did before detachable solvers ran apart.
-struct InPlace(Box<dyn ModeSolver>);
-
-impl ModeSolver for InPlace {
-    fn name(&self) -> &'static str {
-        self.0.name()
-    }
-    fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
-        self.0.solve(r)
-    }
+    /// Run to its end: it ignores the worker's stop, as every solver did before the worker
+    /// could interrupt them.
     fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
-        self.0.solve_until(r, stop)
+        match self.1 {
+            Obsolete::RunToEnd => self.0.solve(r),
+            _ => self.0.solve_until(r, stop),
+        }
     }
     fn applies(&self, r: &ObjectRequest) -> bool {
         self.0.applies(r)
@@ -57,13 +43,22 @@ impl ModeSolver for InPlace {
     fn expected_error(&self, request: &ObjectRequest) -> Option<f64> {
         self.0.expected_error(request)
     }
+    /// In place: on the worker thread, which waits for the obsolete run's next poll, as it
+    /// did before detachable solvers ran apart.
+    fn detachable(&self) -> bool {
+        self.1 == Obsolete::Stopped && self.0.detachable()
+    }
+    // `finish_when_left`: never, as before the exact solver finished obsolete runs.
 }
 
 /// How the worker treats an exact solve a newer stroke made obsolete.
 #[derive(Clone, Copy, PartialEq)]
 enum Obsolete {
-    /// Left to end by itself on the helper thread (the engine as it is).
+    /// Left apart on the helper thread, stopped at its next poll or, every few strokes,
+    /// finished to refresh the carried answers' start (the engine as it is).
     LeftApart,
+    /// Left apart and always stopped at its next poll (the engine before the refresh).
+    Stopped,
     /// Interrupted at its next poll, the worker waiting for it.
     InPlace,
     /// Run to its end.
@@ -71,22 +66,49 @@ enum Obsolete {
 }
 
 /// The drag on `spec` (named `name`, Poisson's ratio `nu`).
-pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
+pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
     let glass = Material::preset("glass").expect("glass");
     println!(
-        "\ndrag on {name} ({spec}): {STROKES} one-voxel strokes every {interval_ms} ms, \
-         {MODES} modes, hex27x2; ms from a stroke to an answer to it (or a later one) playing"
+        "\ndrag on {name} ({spec}): {} one-voxel strokes every {interval_ms} ms, \
+         {MODES} modes, hex27x2; ms from a stroke to an answer to it (or a later one) playing",
+        strokes
     );
     println!(
-        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9} {:>7}",
-        "worker", "median", "p90", "max", "total", "interrupted", "answers", "solve"
+        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9} {:>7} {:>9} {:>9} {:>7}",
+        "worker",
+        "median",
+        "p90",
+        "max",
+        "total",
+        "interrupted",
+        "answers",
+        "solve",
+        "err med",
+        "err max",
+        "exact"
     );
+    // Each stroke's shape and its exact modes, for the error of the answers played.
+    let kind = ElementKind::Hex27Blocks;
+    let exact_options = EigenOptions {
+        count: ModeCount::First(MODES),
+        ..Default::default()
+    };
+    let mut shapes = vec![grid_of(spec, kind)];
+    for _ in 0..strokes {
+        let next = stroke(shapes.last().expect("a shape"), true);
+        shapes.push(next);
+    }
+    let exact: Vec<ModeBasis> = shapes
+        .iter()
+        .map(|g| ModeBasis::solve(g, kind, nu, SolverKind::Auto, &exact_options).expect("exact"))
+        .collect();
     // The first drag of a process runs slower (its buffers, tables and caches are cold:
     // whichever way ran first lost 5-20 ms of median on the cup in stop 66's runs), so a drag
     // the engine's way warms the process up first and is not printed.
     let ways = [
         Obsolete::LeftApart,
         Obsolete::LeftApart,
+        Obsolete::Stopped,
         Obsolete::InPlace,
         Obsolete::RunToEnd,
     ];
@@ -95,8 +117,7 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
             .into_iter()
             .map(|s| match obsolete {
                 Obsolete::LeftApart => s,
-                Obsolete::InPlace => Box::new(InPlace(s)) as Box<dyn ModeSolver>,
-                Obsolete::RunToEnd => Box::new(Uninterrupted(s)) as Box<dyn ModeSolver>,
+                other => Box::new(Wrapped(s, other)) as Box<dyn ModeSolver>,
             })
             .collect();
         let voicing = Voicing::from_material(&glass, nu).expect("voicing");
@@ -122,15 +143,18 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         let first = control.status().playing.expect("an answer").request;
         let start = Instant::now();
         let mut sent = Vec::new();
-        let mut heard = vec![None; STROKES];
+        let mut heard = vec![None; strokes];
         let solves_before = control.status().solves;
         // The carried answers' own time in the worker (`SolveReport::ms`: from the solver's
         // start to its answer handed to the audio side), each report once.
         let mut quick_ms = Vec::new();
         let mut last_seen = None;
+        // Each carried answer's largest frequency error against the exact modes of the shape
+        // it answers.
+        let mut errors = Vec::new();
         while heard.iter().any(Option::is_none) {
             let due = start + Duration::from_millis(interval_ms * sent.len() as u64);
-            if sent.len() < STROKES && Instant::now() >= due {
+            if sent.len() < strokes && Instant::now() >= due {
                 grid = stroke(&grid, true);
                 control.request(request(grid.clone()));
                 sent.push(Instant::now());
@@ -141,6 +165,13 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
                     last_seen = Some((last.request, last.solver));
                     if last.solver == "carried" && last.request > first {
                         quick_ms.push(last.ms);
+                        let stroke = (last.request - first) as usize;
+                        let played = control
+                            .latest_object()
+                            .filter(|o| o.generation == last.generation);
+                        if let Some(basis) = played.as_ref().and_then(|o| o.basis.fem()) {
+                            errors.push(max_relative_difference(basis, &exact[stroke]));
+                        }
                     }
                 }
             }
@@ -161,6 +192,17 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         let total = start.elapsed().as_secs_f64() * 1e3;
         // The last stroke's exact solve is still running: wait for it, or it would run beside
         // the next way's first strokes.
+        let last_sent = *sent.last().expect("strokes");
+        let last_request = first + strokes as u64;
+        let mut final_ms = f64::NAN;
+        while final_ms.is_nan() && start.elapsed() < Duration::from_secs(120) {
+            if let Some(p) = control.status().playing {
+                if p.request == last_request && p.solver == "fem" {
+                    final_ms = last_sent.elapsed().as_secs_f64() * 1e3;
+                }
+            }
+            std::thread::sleep(Duration::from_micros(500));
+        }
         assert!(
             control.wait_idle(Duration::from_secs(60)),
             "the drag's last solve"
@@ -169,13 +211,15 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
         ms.sort_by(f64::total_cmp);
         let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
         quick_ms.sort_by(f64::total_cmp);
+        errors.sort_by(f64::total_cmp);
         if drag == 0 {
             continue;
         }
         println!(
-            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9} {:>7.0}",
+            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9} {:>7.0} {:>9.1e} {:>9.1e} {:>7.0}",
             match obsolete {
                 Obsolete::LeftApart => "left apart",
+                Obsolete::Stopped => "stopped",
                 Obsolete::InPlace => "in place",
                 Obsolete::RunToEnd => "run to end",
             },
@@ -188,7 +232,10 @@ pub fn run(interval_ms: u64, name: &str, spec: &str, nu: f64) {
             quick_ms
                 .get(quick_ms.len() / 2)
                 .copied()
-                .unwrap_or(f64::NAN)
+                .unwrap_or(f64::NAN),
+            errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN),
+            errors.last().copied().unwrap_or(f64::NAN),
+            final_ms
         );
     }
     drift(spec, nu);
@@ -208,9 +255,9 @@ fn drift(spec: &str, nu: f64) {
     let before = solve(&grid).expect("cold");
     let mut line =
         String::from("carried answer from the exact answer before the drag, largest error:");
-    for k in 1..=STROKES {
+    for k in 1..=DRIFT_AT[2] {
         grid = stroke(&grid, true);
-        if [1, 4, STROKES].contains(&k) {
+        if DRIFT_AT.contains(&k) {
             let carried = ModeBasis::carried_ritz(&grid, kind, nu, MODES, &before, None)
                 .expect("comparable")
                 .expect("carried");

@@ -91,6 +91,14 @@ pub trait ModeSolver: Send {
     fn detachable(&self) -> bool {
         false
     }
+    /// Whether a run of this detachable solver on `request` that a newer edit makes obsolete
+    /// goes on to its end on the helper thread instead of stopping at its next poll: its
+    /// answer is not played (the newer edit's answers are), but the solver keeps what it
+    /// computed (the exact solver: the basis the carried answers start from). Asked as the
+    /// run starts; only the engine's shutdown stops such a run. Default: false.
+    fn finish_when_left(&self, _request: &ObjectRequest) -> bool {
+        false
+    }
 }
 
 /// The finite-element modal analysis ([`ModeBasis::solve`]): exact, the reference.
@@ -478,10 +486,16 @@ impl Worker {
     /// gives up waiting (false) if a newer request arrives first, which the chain then
     /// answers from its start, beside the run still ending.
     fn bring_back_unless_superseded(&mut self) -> bool {
+        let waiting = Instant::now();
         loop {
             let Some(helper) = self.helper.as_mut() else {
                 return true;
             };
+            if waiting.elapsed() >= helper::PATIENCE {
+                // No stroke for a while: the drag has paused, and the exact answer to what is
+                // heard now matters more than the run finishing for an earlier shape.
+                helper.abandon();
+            }
             match helper.bring_back(helper::WAIT_POLL) {
                 BroughtBack::Solver(i, solver) => {
                     self.solvers[i] = Some(solver);
