@@ -95,7 +95,8 @@ pub trait ModeSolver: Send {
     /// goes on to its end on the helper thread instead of stopping at its next poll: its
     /// answer is not played (the newer edit's answers are), but the solver keeps what it
     /// computed (the exact solver: the basis the carried answers start from). Asked as the
-    /// run starts; only the engine's shutdown stops such a run. Default: false.
+    /// run starts; only the engine's shutdown stops such a run, or the worker giving up on it
+    /// when no newer edit comes for a while (`worker/helper.rs`, `PATIENCE`). Default: false.
     fn finish_when_left(&self, _request: &ObjectRequest) -> bool {
         false
     }

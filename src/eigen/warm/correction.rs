@@ -171,7 +171,7 @@ fn patch_modes(
 
 /// Patch modes added to the instant answer's Rayleigh-Ritz basis ([`patch_modes`]). With 8,
 /// on the default object after 4 and 12 one-voxel strokes at one spot, the carried modes'
-/// median frequency error fell from 1.9e-4 to 3.6e-5 and from 7.9e-4 to 2.3e-4 (a
+/// median frequency error fell from 1.9e-4 to 3.8e-5 and from 7.9e-4 to 2.2e-4 (a
 /// temporary harness); 4 did about as well after one stroke, 16 no better.
 const PATCH_MODES: usize = 8;
 
