@@ -10,6 +10,7 @@ use modalforge::engine::{
 };
 use modalforge::fem::ElementKind;
 use modalforge::material::Material;
+use modalforge::shape::VoxelGrid;
 use std::time::{Duration, Instant};
 
 /// Strokes in one drag, unless `--strokes K` says otherwise.
@@ -87,14 +88,15 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
         "err max",
         "exact"
     );
-    // Each stroke's shape and its exact modes, for the error of the answers played.
+    // Each stroke's shape and its exact modes, for the error of the answers played and the
+    // drift (`DRIFT_AT`).
     let kind = ElementKind::Hex27Blocks;
     let exact_options = EigenOptions {
         count: ModeCount::First(MODES),
         ..Default::default()
     };
     let mut shapes = vec![grid_of(spec, kind)];
-    for _ in 0..strokes {
+    for _ in 0..strokes.max(DRIFT_AT[2]) {
         let next = stroke(shapes.last().expect("a shape"), true);
         shapes.push(next);
     }
@@ -190,8 +192,7 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
             std::thread::sleep(Duration::from_micros(500));
         }
         let total = start.elapsed().as_secs_f64() * 1e3;
-        // The last stroke's exact solve is still running: wait for it, or it would run beside
-        // the next way's first strokes.
+        // When the exact answer to the last stroke plays.
         let last_sent = *sent.last().expect("strokes");
         let last_request = first + strokes as u64;
         let mut final_ms = f64::NAN;
@@ -203,6 +204,8 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
             }
             std::thread::sleep(Duration::from_micros(500));
         }
+        // The last stroke's exact solve may still be running: wait for it, or it would run
+        // beside the next way's first strokes.
         assert!(
             control.wait_idle(Duration::from_secs(60)),
             "the drag's last solve"
@@ -238,33 +241,29 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
             final_ms
         );
     }
-    drift(spec, nu);
+    drift(&shapes, &exact, nu);
 }
 
 /// While a drag keeps interrupting the exact solve, each stroke's carried answer starts
 /// from the exact answer before the drag: its largest frequency error against a cold solve
-/// after 1, 4 and 12 strokes.
-fn drift(spec: &str, nu: f64) {
-    let options = EigenOptions {
-        count: ModeCount::First(MODES),
-        ..Default::default()
-    };
-    let kind = ElementKind::Hex27Blocks;
-    let solve = |g: &_| ModeBasis::solve(g, kind, nu, SolverKind::Auto, &options);
-    let mut grid = grid_of(spec, kind);
-    let before = solve(&grid).expect("cold");
+/// after 1, 4 and 12 strokes (`shapes[k]` and `exact[k]`: the drag's shape after `k` strokes
+/// and its cold solve, which `run` made for the answers played).
+fn drift(shapes: &[VoxelGrid], exact: &[ModeBasis], nu: f64) {
     let mut line =
         String::from("carried answer from the exact answer before the drag, largest error:");
-    for k in 1..=DRIFT_AT[2] {
-        grid = stroke(&grid, true);
-        if DRIFT_AT.contains(&k) {
-            let carried = ModeBasis::carried_ritz(&grid, kind, nu, MODES, &before, None)
-                .expect("comparable")
-                .expect("carried");
-            let exact = solve(&grid).expect("cold");
-            let e = max_relative_difference(&carried, &exact);
-            line += &format!(" {e:.1e} after {k} stroke{}", if k > 1 { "s" } else { "" });
-        }
+    for k in DRIFT_AT {
+        let carried = ModeBasis::carried_ritz(
+            &shapes[k],
+            ElementKind::Hex27Blocks,
+            nu,
+            MODES,
+            &exact[0],
+            None,
+        )
+        .expect("comparable")
+        .expect("carried");
+        let e = max_relative_difference(&carried, &exact[k]);
+        line += &format!(" {e:.1e} after {k} stroke{}", if k > 1 { "s" } else { "" });
     }
     println!("{line}");
 }
