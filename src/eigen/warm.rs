@@ -203,11 +203,21 @@ pub fn ritz(
         &map,
         &x_rows,
         fields,
-        patch.as_deref().unwrap_or(&[]),
+        patch.as_ref().map_or(&[], |p| &p.nodes),
     );
+    let (mut k_rows, mut m_rows) = (k_rows, m_rows);
     let correction = patch.as_ref().and_then(|p| {
         let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
-        correction::local_correction(&ops, next, p, &theta, k_rows.as_ref(), m_rows.as_ref())
+        let relax = |nodes: &[usize], k: &Mat<f64>, m: &Mat<f64>| {
+            correction::local_correction(&ops, next, nodes, &theta, k.as_ref(), m.as_ref())
+        };
+        relax(&p.nodes, &k_rows, &m_rows).or_else(|| {
+            // The wide patch held a whole part (hinged to the rest): the narrow one, whose
+            // rows are among the wide one's.
+            let narrow = p.narrow.as_ref()?;
+            (k_rows, m_rows) = (p.rows_of(narrow, &k_rows), p.rows_of(narrow, &m_rows));
+            relax(narrow, &k_rows, &m_rows)
+        })
     });
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
@@ -287,21 +297,80 @@ const RITZ_GUARDS: usize = 8;
 /// [`correction::local_correction`].
 const PATCH_RADIUS: i64 = 2;
 
+/// The relaxed patch's radius where it stays within [`WIDE_PATCH_MAX_DOFS`]: twice
+/// [`PATCH_RADIUS`]. One stroke on each of the smaller presets' shapes, the worst carried
+/// mode's error with the one-block patch against the two-block one (with the extra patch
+/// modes a wide patch can need, `correction::patch_modes`; a temporary harness): the brass
+/// gong 5.9e-3 -> 1.7e-3, the steel bar 5.4e-3 -> 3.3e-3, the wooden slat 7.0e-4 -> 1.2e-4,
+/// the iron pipe 8.2e-4 -> 1.1e-4.
+const WIDE_PATCH_RADIUS: i64 = 2 * PATCH_RADIUS;
+
+/// Largest wide patch, in DOFs. The carried answer's time, one-block patch against two
+/// (medians of 10, two rounds): the iron pipe (429 DOFs) and the brass gong (603) 2-3 ms
+/// more, the wooden slat (693) 7 ms more (11-13 -> 19 ms), the steel bar (879, 32 patch
+/// modes) 11 ms more (13 -> 24 ms). Measured and not kept: the tin can's and the glass vase's
+/// 1,281-DOF wide patches took 5.2e-3 -> 2.9e-3 and 4.9e-3 -> 2.2e-3 for 15-16 ms more (28
+/// -> 44 and 34 -> 49 ms), the aluminium plate's 1,089 5.4e-5 -> 2.4e-5 for 5 ms more, and
+/// the default object's 2,055 4.9e-3 -> 4.5e-3 for 25 ms more.
+const WIDE_PATCH_MAX_DOFS: usize = 1000;
+
 /// Largest relaxed patch, in DOFs (a brush stroke's is a few hundred; beyond this the edit is no
 /// stroke and its factor would cost more than the carried answer saves).
 const MAX_PATCH_DOFS: usize = 1500;
 
-/// The new model's nodes near the edit: within [`PATCH_RADIUS`] voxels of a voxel that was
-/// added, removed or refilled (for [`crate::fem::ElementKind::Hex27Blocks`]: within one block
-/// of such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
+/// The new model's nodes near the edit: within [`WIDE_PATCH_RADIUS`] voxels of a voxel that was
+/// added, removed or refilled where those are at most [`WIDE_PATCH_MAX_DOFS`], else within
+/// [`PATCH_RADIUS`] (for [`crate::fem::ElementKind::Hex27Blocks`]: within two blocks or one of
+/// such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
 /// patch is too large to relax.
-fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
+fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Patch> {
     if edited.is_empty() {
         return None;
     }
     let block = next.kind.voxels_per_element() as i64;
-    let nodes = nodes_near(next, edited, (PATCH_RADIUS + block - 1) / block);
-    (3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes()).then_some(nodes)
+    let near = |radius: i64| nodes_near(next, edited, (radius + block - 1) / block);
+    let fits = |nodes: &Vec<usize>| 3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes();
+    let (wide, narrow) = (near(WIDE_PATCH_RADIUS), near(PATCH_RADIUS));
+    if 3 * wide.len() <= WIDE_PATCH_MAX_DOFS && fits(&wide) && wide.len() > narrow.len() {
+        Some(Patch {
+            nodes: wide,
+            narrow: Some(narrow),
+        })
+    } else {
+        fits(&narrow).then_some(Patch {
+            nodes: narrow,
+            narrow: None,
+        })
+    }
+}
+
+/// The relaxed patch of [`edit_patch`].
+struct Patch {
+    /// Its nodes, ascending.
+    nodes: Vec<usize>,
+    /// Where `nodes` is the wide patch, the narrow one inside it (ascending) to fall back on:
+    /// a wide patch can hold a whole part of the object hinged to the rest, whose stiffness
+    /// with the patch's boundary held is singular (`tests/warm_start.rs`, two cubes sharing
+    /// an edge).
+    narrow: Option<Vec<usize>>,
+}
+
+impl Patch {
+    /// The rows of `rows` (three per node of [`Patch::nodes`], in that order) at `subset`, a
+    /// subset of those nodes, ascending.
+    fn rows_of(&self, subset: &[usize], rows: &Mat<f64>) -> Mat<f64> {
+        let mut at = Vec::with_capacity(subset.len());
+        let mut i = 0;
+        for &node in subset {
+            while self.nodes[i] != node {
+                i += 1;
+            }
+            at.push(i);
+        }
+        Mat::from_fn(3 * subset.len(), rows.ncols(), |r, j| {
+            rows[(3 * at[r / 3] + r % 3, j)]
+        })
+    }
 }
 
 /// The nodes of `next` on the elements within `radius` cells (Chebyshev distance) of an

@@ -38,8 +38,6 @@ pub(super) struct Correction {
     /// `K_pp delta` and `M_pp delta`.
     pub k_delta: Mat<f64>,
     pub m_delta: Mat<f64>,
-    /// Each node's place in the patch (`u32::MAX` off it).
-    local: Vec<u32>,
 }
 
 /// The corrections of the columns of `x` (`n x w`) on the nodes `patch`, given their images
@@ -89,120 +87,128 @@ pub(super) fn local_correction(
     let mut delta = rhs.clone();
     factor.solve_in_place(delta.as_mut());
     let mut k_delta = rhs;
-    if let Some((z, kz)) = patch_modes(&mut factor, &pattern, &mpp) {
+    let theta_max = theta.iter().copied().fold(0.0, f64::max);
+    if let Some((z, kz)) = patch_modes(&mut factor, &pattern, &mpp, theta_max) {
         // The patch's own modes join the corrections: both vanish off the patch.
-        let (w0, n3) = (delta.ncols(), delta.nrows());
-        let join = |a: &Mat<f64>, b: &Mat<f64>| {
-            Mat::from_fn(n3, w0 + b.ncols(), |i, j| {
-                if j < w0 {
-                    a[(i, j)]
-                } else {
-                    b[(i, j - w0)]
-                }
-            })
-        };
-        delta = join(&delta, &z);
-        k_delta = join(&k_delta, &kz);
+        delta = side_by_side(&delta, &z);
+        k_delta = side_by_side(&k_delta, &kz);
     }
-    let mut correction = Correction {
+    let m_delta = patch_mass(&pattern, &mpp, delta.as_ref());
+    Some(Correction {
         dofs,
         delta,
         k_delta,
-        m_delta: Mat::zeros(0, 0),
-        local,
-    };
-    correction.m_delta = correction.mass_images(ops, patch);
-    Some(correction)
+        m_delta,
+    })
 }
 
-/// The patch's lowest [`PATCH_MODES`] modes with its boundary held (`K_pp z = mu M_pp z`),
-/// approximately: [`PATCH_ITERATIONS`] steps of block inverse iteration from a fixed random
-/// block on the patch's factor, each followed by a Rayleigh-Ritz step. Returns them with
-/// their images `K_pp Z`, which the iteration knows without a product (`K_pp Y = M_pp Z` for
+/// The patch's lowest modes with its boundary held (`K_pp z = mu M_pp z`), approximately:
+/// [`PATCH_ITERATIONS`] steps of block inverse iteration from a fixed random block on the
+/// patch's factor, each followed by a Rayleigh-Ritz step. Returns them with their images
+/// `K_pp Z`, which the iteration knows without a product (`K_pp Y = M_pp Z` for
 /// `Y = K_pp^-1 M_pp Z`). `None` if the Rayleigh-Ritz step fails.
+///
+/// How many: Craig and Bampton keep the fixed-interface modes up to the frequencies the
+/// reduced model must reproduce, here `theta_max`, the highest carried Rayleigh quotient.
+/// A small patch has few modes below it and [`PATCH_MODES`] serve. A Ritz value bounds its
+/// mode from above, so when the block's last is below `theta_max` after a step (a wide patch
+/// on a slender object: the steel bar's two-block patch holds 25 modes below), more modes lie
+/// below it: the block is widened to [`PATCH_MODES_MAX`] with more random columns and
+/// iterated [`PATCH_ITERATIONS`] more steps, and it keeps the modes below `theta_max` and
+/// [`PATCH_MODES_MARGIN`] more.
 fn patch_modes(
     factor: &mut ShiftedCholesky,
     pattern: &BlockPattern,
     mpp: &[f64],
+    theta_max: f64,
 ) -> Option<(Mat<f64>, Mat<f64>)> {
-    let np = pattern.nodes();
-    let mass = |z: &Mat<f64>| {
-        let mut out = Mat::<f64>::zeros(3 * np, z.ncols());
-        for j in 0..z.ncols() {
-            let (src, dst) = (z.col(j), out.col_mut(j));
-            let (src, dst) = (
-                src.try_as_col_major()
-                    .expect("owned columns are contiguous")
-                    .as_slice(),
-                dst.try_as_col_major_mut()
-                    .expect("owned columns are contiguous")
-                    .as_slice_mut(),
-            );
-            for i in 0..np {
-                let mut acc = [0.0; 3];
-                let row = pattern.row_ptr[i]..pattern.row_ptr[i + 1];
-                for (&a, &m) in pattern.col[row.clone()].iter().zip(&mpp[row]) {
-                    let a = 3 * a as usize;
-                    for (o, v) in acc.iter_mut().zip(&src[a..a + 3]) {
-                        *o += m * v;
-                    }
-                }
-                dst[3 * i..3 * i + 3].copy_from_slice(&acc);
-            }
-        }
-        out
-    };
-    let count = PATCH_MODES.min(3 * np / 2);
+    let rows = 3 * pattern.nodes();
+    let widest = PATCH_MODES_MAX.min(rows / 2);
     let mut rng = crate::rng::SplitMix64::new(0x9A7C4);
-    let mut z = Mat::<f64>::from_fn(3 * np, count, |_, _| rng.unit() - 0.5);
-    let mut kz = Mat::<f64>::zeros(3 * np, count);
-    for _ in 0..PATCH_ITERATIONS {
-        let mz = mass(&z);
+    let mut random = |cols: usize| Mat::<f64>::from_fn(rows, cols, |_, _| rng.unit() - 0.5);
+    let mut z = random(PATCH_MODES.min(widest));
+    let mut mz = patch_mass(pattern, mpp, z.as_ref());
+    let mut kz = Mat::<f64>::zeros(rows, z.ncols());
+    let (mut steps, mut widened) = (0, false);
+    while steps < PATCH_ITERATIONS {
+        let count = z.ncols();
         let mut y = mz.clone();
         factor.solve_in_place(y.as_mut());
+        let my = patch_mass(pattern, mpp, y.as_ref());
         let gk = y.transpose() * &mz;
-        let gm = y.transpose() * mass(&y);
-        let (_, c) = super::super::lobpcg::dense_ritz(&gk, &gm, count).ok()?;
+        let gm = y.transpose() * &my;
+        let (mu, c) = super::super::lobpcg::dense_ritz(&gk, &gm, count).ok()?;
         z = &y * &c;
         kz = &mz * &c;
+        // `M Z` for the next step, by linearity instead of another sparse product.
+        mz = &my * &c;
+        steps += 1;
+        if !widened && count < widest && mu.last().is_some_and(|&m| m < theta_max) {
+            let more = random(widest - count);
+            mz = side_by_side(&mz, &patch_mass(pattern, mpp, more.as_ref()));
+            z = side_by_side(&z, &more);
+            (steps, widened) = (0, true);
+        } else if steps == PATCH_ITERATIONS && widened {
+            let below = mu.iter().filter(|&&m| m < theta_max).count();
+            let keep = (below + PATCH_MODES_MARGIN).max(PATCH_MODES).min(count);
+            return Some((
+                z.get(.., 0..keep).to_owned(),
+                kz.get(.., 0..keep).to_owned(),
+            ));
+        }
     }
     Some((z, kz))
 }
 
-/// Patch modes added to the instant answer's Rayleigh-Ritz basis ([`patch_modes`]). With 8,
-/// on the default object after 4 and 12 one-voxel strokes at one spot, the carried modes'
-/// median frequency error fell from 1.9e-4 to 3.8e-5 and from 7.9e-4 to 2.2e-4 (a
-/// temporary harness); 4 did about as well after one stroke, 16 no better.
+/// Patch modes added to the instant answer's Rayleigh-Ritz basis ([`patch_modes`]) when the
+/// patch has no more below the carried modes. With 8, on the default object after 4 and 12
+/// one-voxel strokes at one spot, the carried modes' median frequency error fell from 1.9e-4
+/// to 3.8e-5 and from 7.9e-4 to 2.2e-4 (a temporary harness); 4 did about as well after one
+/// stroke, 16 no better.
 const PATCH_MODES: usize = 8;
+
+/// The widened block when [`PATCH_MODES`] are all below the carried modes ([`patch_modes`]).
+/// On the steel bar's two-block patch (879 DOFs, 25 modes below) the worst carried mode after
+/// one stroke was 8.8e-3 with 8 patch modes, 6.4e-3 with 16 and 3.1e-3 with all 32 (3.3e-3
+/// with the 29 kept; the one-block patch with 8: 5.4e-3).
+const PATCH_MODES_MAX: usize = 32;
+
+/// Patch modes kept above the carried modes' range (the reduced model's modes near its top
+/// draw on the fixed-interface modes just above it).
+const PATCH_MODES_MARGIN: usize = 4;
 
 /// Inverse iteration steps for the patch modes: 1 left them random (no gain), 2 gave about
 /// half the gain of 3, and 6 little more than 3 for 1 ms more on a 591-DOF patch.
 const PATCH_ITERATIONS: usize = 3;
 
-impl Correction {
-    /// `M_pp delta` (`3 p x w`, column-major).
-    fn mass_images(&self, ops: &Operators, patch: &[usize]) -> Mat<f64> {
-        let w = self.delta.ncols();
-        let by_rows = to_rows(self.delta.as_ref());
-        let mut out = vec![0.0; 3 * patch.len() * w];
-        // Each patch row sums over its blocks whose column node is in the patch; `M`'s blocks
-        // are `M_ab I3`, read as scalars.
-        for (i, &r) in patch.iter().enumerate() {
-            for b in ops.pattern.row_ptr[r]..ops.pattern.row_ptr[r + 1] {
-                let a = self.local[ops.pattern.col[b] as usize];
-                if a == u32::MAX {
-                    continue;
-                }
-                let src = &by_rows[3 * a as usize * w..3 * (a as usize + 1) * w];
-                let s = ops.m[b];
-                out[3 * i * w..3 * (i + 1) * w]
-                    .iter_mut()
-                    .zip(src)
-                    .for_each(|(o, v)| *o += s * v);
-            }
+/// `[a, b]`: the columns of `a`, then those of `b` (the same rows).
+fn side_by_side(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let w = a.ncols();
+    Mat::from_fn(a.nrows(), w + b.ncols(), |i, j| {
+        if j < w {
+            a[(i, j)]
+        } else {
+            b[(i, j - w)]
         }
-        from_rows(&out, w)
+    })
+}
+
+/// `M_pp Z` for `Z` on the patch's DOFs (`3 p x c`, three rows per patch node): `M`'s blocks
+/// are `M_ab I3`, read as scalars, and `Z` by rows, a node's values side by side.
+fn patch_mass(pattern: &BlockPattern, mpp: &[f64], z: MatRef<'_, f64>) -> Mat<f64> {
+    let c = z.ncols();
+    let by_rows = to_rows(z);
+    let mut out = vec![0.0; z.nrows() * c];
+    for (i, dst) in out.chunks_exact_mut(3 * c).enumerate() {
+        let row = pattern.row_ptr[i]..pattern.row_ptr[i + 1];
+        for (&a, &s) in pattern.col[row.clone()].iter().zip(&mpp[row]) {
+            let a = a as usize;
+            dst.iter_mut()
+                .zip(&by_rows[3 * a * c..3 * (a + 1) * c])
+                .for_each(|(o, v)| *o += s * v);
+        }
     }
+    from_rows(&out, c)
 }
 
 #[cfg(test)]
