@@ -113,9 +113,9 @@ pub(super) fn local_correction(
 /// A small patch has few modes below it and [`PATCH_MODES`] serve. A Ritz value bounds its
 /// mode from above, so when the block's last is below `theta_max` after a step (a wide patch
 /// on a slender object: the steel bar's two-block patch holds 25 modes below), more modes lie
-/// below it: the block is widened to [`PATCH_MODES_MAX`] with more random columns and
-/// iterated [`PATCH_ITERATIONS`] more steps, and it keeps the modes below `theta_max` and
-/// [`PATCH_MODES_MARGIN`] more.
+/// below it: on a patch within `WIDE_PATCH_MAX_DOFS` the block is widened to
+/// [`PATCH_MODES_MAX`] with more random columns and iterated [`PATCH_ITERATIONS`] more steps,
+/// and it keeps the modes below `theta_max` and [`PATCH_MODES_MARGIN`] more.
 fn patch_modes(
     factor: &mut ShiftedCholesky,
     pattern: &BlockPattern,
@@ -123,7 +123,14 @@ fn patch_modes(
     theta_max: f64,
 ) -> Option<(Mat<f64>, Mat<f64>)> {
     let rows = 3 * pattern.nodes();
-    let widest = PATCH_MODES_MAX.min(rows / 2);
+    // The widened block costs its patch solves and products (the default object's drag, whose
+    // patch grows with the strokes to 1,000-1,450 DOFs: 4-9 ms more a carried answer); it is
+    // kept to the patches the wide one's budget admits.
+    let widest = if rows <= super::WIDE_PATCH_MAX_DOFS {
+        PATCH_MODES_MAX.min(rows / 2)
+    } else {
+        PATCH_MODES
+    };
     let mut rng = crate::rng::SplitMix64::new(0x9A7C4);
     let mut random = |cols: usize| Mat::<f64>::from_fn(rows, cols, |_, _| rng.unit() - 0.5);
     let mut z = random(PATCH_MODES.min(widest));
