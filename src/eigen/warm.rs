@@ -193,8 +193,8 @@ pub fn ritz(
     let grams::Grams {
         k: mut gk,
         m: mut gm,
-        k_rows,
-        m_rows,
+        mut k_rows,
+        mut m_rows,
     } = grams::grams(
         &ops,
         next,
@@ -205,7 +205,6 @@ pub fn ritz(
         fields,
         patch.as_ref().map_or(&[], |p| &p.nodes),
     );
-    let (mut k_rows, mut m_rows) = (k_rows, m_rows);
     let correction = patch.as_ref().and_then(|p| {
         let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
         let relax = |nodes: &[usize], k: &Mat<f64>, m: &Mat<f64>| {
@@ -237,7 +236,7 @@ pub fn ritz(
         gm = grow(&gm, &m_rows, &cor.m_delta);
     }
     let want = (previous_solution.rigid_modes + count).min(w);
-    let (theta, c) = lobpcg::dense_ritz(&gk, &gm, want)?;
+    let (theta, c) = lobpcg::dense_ritz_independent(&gk, &gm, want)?;
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, f64::NAN)).collect();
     let sel = select(&ops, &pairs, ModeCount::First(count));
     if sel.rigid != previous_solution.rigid_modes {
