@@ -231,8 +231,7 @@ pub(crate) fn dense_ritz(
 ) -> Result<(Vec<f64>, Mat<f64>), EigenError> {
     let s = gk.nrows();
     // Scale to unit diagonal, then keep the well-conditioned directions of the M-Gram matrix.
-    let d = unit_diagonal_scaling(gm);
-    let scaled = Mat::from_fn(s, s, |i, j| d[i] * gm[(i, j)] * d[j]);
+    let (d, scaled) = unit_diagonal(gm);
     let (sigma, u) = sym_eigen(&scaled)?;
     let top = sigma.last().copied().unwrap_or(0.0);
     let keep: Vec<usize> = (0..s).filter(|&j| sigma[j] > GRAM_DROP * top).collect();
@@ -260,8 +259,7 @@ pub(crate) fn dense_ritz_independent(
     want: usize,
 ) -> Result<(Vec<f64>, Mat<f64>), EigenError> {
     let s = gk.nrows();
-    let d = unit_diagonal_scaling(gm);
-    let scaled = Mat::from_fn(s, s, |i, j| d[i] * gm[(i, j)] * d[j]);
+    let (d, scaled) = unit_diagonal(gm);
     let Ok(llt) = scaled.llt(faer::Side::Lower) else {
         return dense_ritz(gk, gm, want);
     };
@@ -289,9 +287,11 @@ pub(crate) fn dense_ritz_independent(
     Ok((theta[..want].to_vec(), c))
 }
 
-/// `1 / sqrt(gm_ii)` (0 where that is not a positive number): the scaling to a unit diagonal.
-fn unit_diagonal_scaling(gm: &Mat<f64>) -> Vec<f64> {
-    (0..gm.nrows())
+/// `gm` scaled to a unit diagonal, `D gm D`, and the scaling `D`: `1 / sqrt(gm_ii)`, 0 where
+/// that is not a positive number.
+fn unit_diagonal(gm: &Mat<f64>) -> (Vec<f64>, Mat<f64>) {
+    let s = gm.nrows();
+    let d: Vec<f64> = (0..s)
         .map(|i| {
             let g = gm[(i, i)];
             if g > 0.0 && g.is_finite() {
@@ -300,7 +300,9 @@ fn unit_diagonal_scaling(gm: &Mat<f64>) -> Vec<f64> {
                 0.0
             }
         })
-        .collect()
+        .collect();
+    let scaled = Mat::from_fn(s, s, |i, j| d[i] * gm[(i, j)] * d[j]);
+    (d, scaled)
 }
 
 /// Smallest share of a column's scaled `M`-norm outside the span of the columns before it for
