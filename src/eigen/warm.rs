@@ -236,7 +236,7 @@ pub fn ritz(
         gm = grow(&gm, &m_rows, &cor.m_delta);
     }
     let want = (previous_solution.rigid_modes + count).min(w);
-    let (theta, c) = lobpcg::dense_ritz_independent(&gk, &gm, want)?;
+    let (theta, c) = lobpcg::dense_ritz_by_cholesky(&gk, &gm, want)?;
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, f64::NAN)).collect();
     let sel = select(&ops, &pairs, ModeCount::First(count));
     if sel.rigid != previous_solution.rigid_modes {
