@@ -310,7 +310,10 @@ const WIDE_PATCH_RADIUS: i64 = 2 * PATCH_RADIUS;
 /// modes) 11 ms more (13 -> 24 ms). Measured and not kept: the tin can's and the glass vase's
 /// 1,281-DOF wide patches took 5.2e-3 -> 2.9e-3 and 4.9e-3 -> 2.2e-3 for 15-16 ms more (28
 /// -> 44 and 34 -> 49 ms), the aluminium plate's 1,089 5.4e-5 -> 2.4e-5 for 5 ms more, and
-/// the default object's 2,055 4.9e-3 -> 4.5e-3 for 25 ms more.
+/// the default object's 2,055 4.9e-3 -> 4.5e-3 for 25 ms more. Stop 69's Krylov growth of
+/// the patch modes (`correction::krylov_modes`: the bar 24-25 -> 21-24 ms, the slat 22-25 ->
+/// 17-19) left the tin can's wide patch 20-25 ms over its narrow one (58-62 against 31-37 ms,
+/// three rounds): most of it is the wide patch's own factor, corrections and Gram rows.
 const WIDE_PATCH_MAX_DOFS: usize = 1000;
 
 /// Largest relaxed patch, in DOFs (a brush stroke's is a few hundred; beyond this the edit is no

@@ -27,7 +27,8 @@ use super::super::factor::ShiftedCholesky;
 use super::super::{from_rows, to_rows, Operators};
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
-use faer::{Mat, MatRef};
+use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
+use faer::{Mat, MatRef, Par};
 
 /// Local corrections near an edit ([`local_correction`]): on the patch DOFs only.
 pub(super) struct Correction {
@@ -53,14 +54,56 @@ pub(super) fn local_correction(
     mx: MatRef<'_, f64>,
 ) -> Option<Correction> {
     let np = patch.len();
+    let PatchProblem {
+        pattern,
+        mpp,
+        mut factor,
+    } = patch_problem(ops, model, patch)?;
+    let dofs: Vec<usize> = patch
+        .iter()
+        .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
+        .collect();
+    let w = kx.ncols();
+    let rhs = Mat::<f64>::from_fn(3 * np, w, |i, j| theta[j] * mx[(i, j)] - kx[(i, j)]);
+    let mut delta = rhs.clone();
+    factor.solve_in_place(delta.as_mut());
+    let mut k_delta = rhs;
+    let theta_max = theta.iter().copied().fold(0.0, f64::max);
+    let mut m_delta = patch_mass(&pattern, &mpp, delta.as_ref());
+    if let Some(modes) = patch_modes(&mut factor, &pattern, &mpp, theta_max) {
+        // The patch's own modes join the corrections: both vanish off the patch.
+        delta = side_by_side(&delta, &modes.z);
+        k_delta = side_by_side(&k_delta, &modes.kz);
+        m_delta = side_by_side(&m_delta, &modes.mz);
+    }
+    Some(Correction {
+        dofs,
+        delta,
+        k_delta,
+        m_delta,
+    })
+}
+
+/// A patch's stiffness and mass with its boundary held, and the stiffness factored.
+struct PatchProblem {
+    /// The patch's own block pattern (its nodes in patch order, which is node order, so each
+    /// row's columns stay sorted).
+    pattern: BlockPattern,
+    /// Mass scalars on `pattern` (`M_ab I3`).
+    mpp: Vec<f64>,
+    /// `K_pp`, factored sparse in nested-dissection order.
+    factor: ShiftedCholesky,
+}
+
+/// The [`PatchProblem`] of the nodes `patch` (ascending) of `model`; `None` if `K_pp` is not
+/// positive definite (the patch is a whole part of the object).
+fn patch_problem(ops: &Operators, model: &FemModel, patch: &[usize]) -> Option<PatchProblem> {
     let (lattice, order_p) = (|v| model.node_lattice_coords(v), model.kind.order() as i64);
     let mut local = vec![u32::MAX; ops.pattern.nodes()];
     for (i, &node) in patch.iter().enumerate() {
         local[node] = i as u32;
     }
-    // The patch's own block pattern (its nodes in patch order, which is node order, so each
-    // row's columns stay sorted) and stiffness, factored sparse in nested-dissection order.
-    let mut row_ptr = Vec::with_capacity(np + 1);
+    let mut row_ptr = Vec::with_capacity(patch.len() + 1);
     let (mut col, mut kpp, mut mpp) = (Vec::new(), Vec::new(), Vec::new());
     row_ptr.push(0);
     for &node in patch {
@@ -77,67 +120,48 @@ pub(super) fn local_correction(
     let pattern = BlockPattern { row_ptr, col };
     let coords: Vec<[i64; 3]> = patch.iter().map(|&v| lattice(v)).collect();
     let order = ordering::nested_dissection_of(&coords, order_p);
-    let mut factor = ShiftedCholesky::from_blocks(&pattern, &kpp, &mpp, 0.0, &order).ok()?;
-    let dofs: Vec<usize> = patch
-        .iter()
-        .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
-        .collect();
-    let w = kx.ncols();
-    let rhs = Mat::<f64>::from_fn(3 * np, w, |i, j| theta[j] * mx[(i, j)] - kx[(i, j)]);
-    let mut delta = rhs.clone();
-    factor.solve_in_place(delta.as_mut());
-    let mut k_delta = rhs;
-    let theta_max = theta.iter().copied().fold(0.0, f64::max);
-    if let Some((z, kz)) = patch_modes(&mut factor, &pattern, &mpp, theta_max) {
-        // The patch's own modes join the corrections: both vanish off the patch.
-        delta = side_by_side(&delta, &z);
-        k_delta = side_by_side(&k_delta, &kz);
-    }
-    let m_delta = patch_mass(&pattern, &mpp, delta.as_ref());
-    Some(Correction {
-        dofs,
-        delta,
-        k_delta,
-        m_delta,
+    let factor = ShiftedCholesky::from_blocks(&pattern, &kpp, &mpp, 0.0, &order).ok()?;
+    Some(PatchProblem {
+        pattern,
+        mpp,
+        factor,
     })
 }
 
 /// The patch's lowest modes with its boundary held (`K_pp z = mu M_pp z`), approximately:
 /// [`PATCH_ITERATIONS`] steps of block inverse iteration from a fixed random block on the
 /// patch's factor, each followed by a Rayleigh-Ritz step. Returns them with their images
-/// `K_pp Z`, which the iteration knows without a product (`K_pp Y = M_pp Z` for
-/// `Y = K_pp^-1 M_pp Z`). `None` if the Rayleigh-Ritz step fails.
+/// `K_pp Z` and `M_pp Z`, which the iteration knows without more products (`K_pp Y = M_pp Z`
+/// for `Y = K_pp^-1 M_pp Z`). `None` if the Rayleigh-Ritz step fails.
 ///
 /// How many: Craig and Bampton keep the fixed-interface modes up to the frequencies the
 /// reduced model must reproduce, here `theta_max`, the highest carried Rayleigh quotient.
 /// A small patch has few modes below it and [`PATCH_MODES`] serve. A Ritz value bounds its
 /// mode from above, so when the block's last is below `theta_max` after a step (a wide patch
 /// on a slender object: the steel bar's two-block patch holds 25 modes below), more modes lie
-/// below it: on a patch within `WIDE_PATCH_MAX_DOFS` the block is widened to
-/// [`PATCH_MODES_MAX`] with more random columns and iterated [`PATCH_ITERATIONS`] more steps,
-/// and it keeps the modes below `theta_max` and [`PATCH_MODES_MARGIN`] more.
+/// below it: on a patch within `WIDE_PATCH_MAX_DOFS` the block grows to [`PATCH_MODES_MAX`]
+/// columns by [`krylov_modes`], which keeps the modes below `theta_max` and
+/// [`PATCH_MODES_MARGIN`] more.
 fn patch_modes(
     factor: &mut ShiftedCholesky,
     pattern: &BlockPattern,
     mpp: &[f64],
     theta_max: f64,
-) -> Option<(Mat<f64>, Mat<f64>)> {
+) -> Option<PatchModes> {
     let rows = 3 * pattern.nodes();
-    // The widened block costs its patch solves and products (the default object's drag, whose
-    // patch grows with the strokes to 1,000-1,450 DOFs: 4-9 ms more a carried answer); it is
-    // kept to the patches the wide one's budget admits.
+    // The grown block costs its patch solves and products (the default object's drag, whose
+    // patch grows with the strokes to 1,000-1,450 DOFs: 4-9 ms more a carried answer with
+    // stop 68's subspace iteration); it is kept to the patches the wide one's budget admits.
     let widest = if rows <= super::WIDE_PATCH_MAX_DOFS {
         PATCH_MODES_MAX.min(rows / 2)
     } else {
         PATCH_MODES
     };
     let mut rng = crate::rng::SplitMix64::new(0x9A7C4);
-    let mut random = |cols: usize| Mat::<f64>::from_fn(rows, cols, |_, _| rng.unit() - 0.5);
-    let mut z = random(PATCH_MODES.min(widest));
+    let mut z = Mat::<f64>::from_fn(rows, PATCH_MODES.min(widest), |_, _| rng.unit() - 0.5);
     let mut mz = patch_mass(pattern, mpp, z.as_ref());
     let mut kz = Mat::<f64>::zeros(rows, z.ncols());
-    let (mut steps, mut widened) = (0, false);
-    while steps < PATCH_ITERATIONS {
+    for _ in 0..PATCH_ITERATIONS {
         let count = z.ncols();
         let mut y = mz.clone();
         factor.solve_in_place(y.as_mut());
@@ -149,22 +173,89 @@ fn patch_modes(
         kz = &mz * &c;
         // `M Z` for the next step, by linearity instead of another sparse product.
         mz = &my * &c;
-        steps += 1;
-        if !widened && count < widest && mu.last().is_some_and(|&m| m < theta_max) {
-            let more = random(widest - count);
-            mz = side_by_side(&mz, &patch_mass(pattern, mpp, more.as_ref()));
-            z = side_by_side(&z, &more);
-            (steps, widened) = (0, true);
-        } else if steps == PATCH_ITERATIONS && widened {
-            let below = mu.iter().filter(|&&m| m < theta_max).count();
-            let keep = (below + PATCH_MODES_MARGIN).max(PATCH_MODES).min(count);
-            return Some((
-                z.get(.., 0..keep).to_owned(),
-                kz.get(.., 0..keep).to_owned(),
-            ));
+        if count + PATCH_MODES <= widest && mu.last().is_some_and(|&m| m < theta_max) {
+            let modes = PatchModes { z, kz, mz };
+            return krylov_modes(factor, pattern, mpp, modes, widest, theta_max);
         }
     }
-    Some((z, kz))
+    Some(PatchModes { z, kz, mz })
+}
+
+/// Patch modes and their images on the patch: `Z`, `K_pp Z`, `M_pp Z`.
+struct PatchModes {
+    z: Mat<f64>,
+    kz: Mat<f64>,
+    mz: Mat<f64>,
+}
+
+/// [`patch_modes`] grown to `widest` columns where more patch modes lie below `theta_max`:
+/// the block Krylov space of `K_pp^-1 M_pp` on the Ritz vectors `start` (`[Z, K^-1 M Z,
+/// (K^-1 M)^2 Z, ...]`, each block `M`-orthogonalised against the ones before it by classical
+/// Gram-Schmidt twice, its columns `M`-normalised) and one Rayleigh-Ritz step on it. A block
+/// costs one patch solve and one mass product of [`PATCH_MODES`] columns; the images stay known
+/// without `K` (`K W = M V_last - (K V) H` for `W = K^-1 M V_last - V H`). Stop 68 grew the
+/// block to 32 random columns and ran three more steps of subspace iteration: four times the
+/// solves and three times the mass products. One stroke each (a temporary harness, worst
+/// carried mode; the carried answer's time as medians of 11, three rounds interleaved):
+/// the steel bar 3.2e-3 -> 3.0e-3 and 24-25 -> 21-24 ms, the wooden slat 1.2e-4 -> 1.1e-4 and
+/// 22-25 -> 17-19 ms, the iron pipe 1.0e-4 -> 1.1e-4 in the same time. Four blocks (32
+/// columns) were not enough (the bar 4.0e-3), and blocks left without their own
+/// orthonormalisation made the grown basis so ill-conditioned that the bar went to 1.1e-2.
+fn krylov_modes(
+    factor: &mut ShiftedCholesky,
+    pattern: &BlockPattern,
+    mpp: &[f64],
+    start: PatchModes,
+    widest: usize,
+    theta_max: f64,
+) -> Option<PatchModes> {
+    let b = start.z.ncols();
+    let PatchModes {
+        z: mut v,
+        kz: mut kv,
+        mz: mut mv,
+    } = start;
+    while v.ncols() + b <= widest {
+        let last = v.ncols() - b..v.ncols();
+        let mut kw = mv.get(.., last).to_owned();
+        let mut w = kw.clone();
+        factor.solve_in_place(w.as_mut());
+        for _ in 0..2 {
+            // `V^T M W`, with `M V` known.
+            let h = mv.transpose() * &w;
+            w -= &v * &h;
+            kw -= &kv * &h;
+        }
+        // `M`-orthonormal within the block too (Cholesky QR: `W L^-T` for `W^T M W = L L^T`);
+        // a block that has lost its rank ends the growth.
+        let mw = patch_mass(pattern, mpp, w.as_ref());
+        let gram = w.transpose() * &mw;
+        let Ok(llt) = gram.llt(faer::Side::Lower) else {
+            break;
+        };
+        let l = llt.L();
+        let unit = |a: Mat<f64>| {
+            let mut t = a.transpose().to_owned();
+            solve_lower_triangular_in_place(l, t.as_mut(), Par::Seq);
+            t.transpose().to_owned()
+        };
+        let (w, kw, mw) = (unit(w), unit(kw), unit(mw));
+        v = side_by_side(&v, &w);
+        kv = side_by_side(&kv, &kw);
+        mv = side_by_side(&mv, &mw);
+    }
+    let count = v.ncols();
+    let gk = v.transpose() * &kv;
+    let gm = v.transpose() * &mv;
+    let (mu, c) = super::super::lobpcg::dense_ritz(&gk, &gm, count).ok()?;
+    let below = mu.iter().filter(|&&m| m < theta_max).count();
+    let keep = (below + PATCH_MODES_MARGIN).max(PATCH_MODES).min(count);
+    let c = c.get(.., 0..keep);
+    Some(PatchModes {
+        z: &v * c,
+        kz: &kv * c,
+        mz: &mv * c,
+    })
 }
 
 /// Patch modes added to the instant answer's Rayleigh-Ritz basis ([`patch_modes`]) when the
@@ -174,18 +265,20 @@ fn patch_modes(
 /// stroke, 16 no better.
 const PATCH_MODES: usize = 8;
 
-/// The widened block when [`PATCH_MODES`] are all below the carried modes ([`patch_modes`]).
-/// On the steel bar's two-block patch (879 DOFs, 25 modes below) the worst carried mode after
-/// one stroke was 8.8e-3 with 8 patch modes, 6.4e-3 with 16 and 3.1e-3 with all 32 (3.3e-3
-/// with the 29 kept; the one-block patch with 8: 5.4e-3).
-const PATCH_MODES_MAX: usize = 32;
+/// The grown block when [`PATCH_MODES`] are all below the carried modes ([`patch_modes`],
+/// [`krylov_modes`]: five blocks). On the steel bar's two-block patch (879 DOFs, 25 modes
+/// below) the worst carried mode after one stroke was 8.8e-3 with 8 patch modes; stop 68's
+/// subspace iteration gave 6.4e-3 with 16 and 3.1e-3 with 32 (3.3e-3 with the 29 kept; the
+/// one-block patch with 8: 5.4e-3); the Krylov block 4.0e-3 with 32 and 3.0e-3 with 40.
+const PATCH_MODES_MAX: usize = 40;
 
 /// Patch modes kept above the carried modes' range (the reduced model's modes near its top
 /// draw on the fixed-interface modes just above it).
 const PATCH_MODES_MARGIN: usize = 4;
 
-/// Inverse iteration steps for the patch modes: 1 left them random (no gain), 2 gave about
-/// half the gain of 3, and 6 little more than 3 for 1 ms more on a 591-DOF patch.
+/// Inverse iteration steps for the patch modes where they are not grown: 1 left them random
+/// (no gain), 2 gave about half the gain of 3, and 6 little more than 3 for 1 ms more on a
+/// 591-DOF patch.
 const PATCH_ITERATIONS: usize = 3;
 
 /// `[a, b]`: the columns of `a`, then those of `b` (the same rows).
@@ -287,6 +380,93 @@ mod tests {
                     assert!((cor.m_delta[(i, j)] - md[(dof, j)]).abs() <= 1e-12 * scale(&md));
                 }
             }
+        }
+    }
+
+    #[test]
+    fn grown_patch_modes_are_the_patchs_lowest_modes_with_their_images() {
+        // A slender bar's end (hex27x2): a patch of a few hundred DOFs with many modes below
+        // any bound, so the block grows to its widest. Against the patch's dense generalized
+        // eigenproblem (an independent solve): the lowest four Ritz values to 1e-9 relative
+        // (measured 5e-13 to 3e-11, the rounding of either solve: five Krylov blocks on an
+        // inverse-iterated start resolve the bottom of this 351-DOF spectrum), the images `K_pp Z`, `M_pp Z` as whole products
+        // of `Z` padded with zeros (1e-9 and 1e-12 of the scale, as above), and `Z` `M`-
+        // orthonormal and `K`-diagonal to 1e-10.
+        let grid = Primitive::Bar {
+            length: 16.0,
+            width: 2.0,
+            height: 2.0,
+        }
+        .rasterize(1.0, 1.0)
+        .unwrap();
+        let model = FemModel::assemble(&grid, ElementKind::Hex27Blocks, 0.3).unwrap();
+        let ops = Operators::new(&model);
+        let n = model.dofs();
+        let long = (0..3)
+            .max_by_key(|&a| {
+                (0..model.nodes())
+                    .map(|v| model.node_lattice_coords(v)[a])
+                    .max()
+            })
+            .unwrap();
+        let patch: Vec<usize> = (0..model.nodes())
+            .filter(|&v| model.node_lattice_coords(v)[long] <= 12)
+            .collect();
+        let rows = 3 * patch.len();
+        assert!(
+            (200..=super::super::WIDE_PATCH_MAX_DOFS).contains(&rows),
+            "{rows}"
+        );
+        let PatchProblem {
+            pattern,
+            mpp,
+            mut factor,
+        } = patch_problem(&ops, &model, &patch).unwrap();
+        let modes = patch_modes(&mut factor, &pattern, &mpp, f64::INFINITY).unwrap();
+        let count = modes.z.ncols();
+        assert_eq!(count, PATCH_MODES_MAX.min(rows / 2));
+        // Whole products of the padded columns, read back on the patch.
+        let on_patch = |d: &Mat<f64>, which: Which| {
+            let mut full = Mat::<f64>::zeros(n, d.ncols());
+            for (i, &node) in patch.iter().enumerate() {
+                for c in 0..3 {
+                    for j in 0..d.ncols() {
+                        full[(3 * node + c, j)] = d[(3 * i + c, j)];
+                    }
+                }
+            }
+            let image = ops.apply_block(which, full.as_ref());
+            Mat::from_fn(rows, d.ncols(), |i, j| image[(3 * patch[i / 3] + i % 3, j)])
+        };
+        let (kz, mz) = (on_patch(&modes.z, Which::K), on_patch(&modes.z, Which::M));
+        let close = |a: &Mat<f64>, b: &Mat<f64>, rel: f64| (a - b).norm_max() <= rel * b.norm_max();
+        assert!(close(&modes.kz, &kz, 1e-9) && close(&modes.mz, &mz, 1e-12));
+        let (zkz, zmz) = (modes.z.transpose() * &kz, modes.z.transpose() * &mz);
+        let mu: Vec<f64> = (0..count).map(|j| zkz[(j, j)]).collect();
+        for i in 0..count {
+            for j in 0..count {
+                let (k_ij, m_ij) = if i == j { (mu[i], 1.0) } else { (0.0, 0.0) };
+                assert!((zkz[(i, j)] - k_ij).abs() <= 1e-10 * mu[count - 1]);
+                assert!((zmz[(i, j)] - m_ij).abs() <= 1e-10);
+            }
+        }
+        // The dense pencil: `L^-1 K L^-T` for `M = L L^T`.
+        let eye = Mat::<f64>::identity(rows, rows);
+        let (k_dense, m_dense) = (on_patch(&eye, Which::K), on_patch(&eye, Which::M));
+        let l = m_dense.llt(faer::Side::Lower).unwrap().L().to_owned();
+        let mut h = k_dense;
+        solve_lower_triangular_in_place(l.as_ref(), h.as_mut(), Par::Seq);
+        let mut h = h.transpose().to_owned();
+        solve_lower_triangular_in_place(l.as_ref(), h.as_mut(), Par::Seq);
+        let (exact, _) = crate::eigen::sym_eigen(&h).unwrap();
+        for j in 0..4 {
+            let tolerance = 1e-9 * exact[j];
+            assert!(
+                (mu[j] - exact[j]).abs() <= tolerance,
+                "{} against {}",
+                mu[j],
+                exact[j]
+            );
         }
     }
 }
