@@ -325,8 +325,9 @@ fn a_wide_patch_and_its_extra_modes_tune_the_carried_answer_on_small_objects() {
     //   with the one-block patch; bounded at 3e-3;
     // - the wooden slat (30 x 5 x 1) with a voxel on top: its wide patch holds more of its
     //   own modes below the carried ones than the first block of 8, and the second block
-    //   keeps them (`correction::patch_modes`): 1.3e-4 measured, 6.4e-4 with 8 patch modes
-    //   and 7.0e-4 with the narrow patch; bounded at 3e-4;
+    //   keeps them (`correction::patch_modes`): 9.9e-5 measured (1.3e-4 with stop 68's
+    //   grown block), 6.4e-4 with 8 patch modes and 7.0e-4 with the narrow patch; bounded at
+    //   3e-4;
     // - the iron pipe (Poisson's ratio 0.28), a voxel added: 9.8e-5 measured, bounded at
     //   3e-4. Its carried basis has nearly dependent columns (13 of 163 under 1e-10 of their
     //   norm outside the span of the ones before them), and a Ritz step that dropped them

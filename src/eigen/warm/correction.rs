@@ -191,16 +191,18 @@ struct PatchModes {
 /// [`patch_modes`] grown to `widest` columns where more patch modes lie below `theta_max`:
 /// the block Krylov space of `K_pp^-1 M_pp` on the Ritz vectors `start` (`[Z, K^-1 M Z,
 /// (K^-1 M)^2 Z, ...]`, each block `M`-orthogonalised against the ones before it by classical
-/// Gram-Schmidt twice, its columns `M`-normalised) and one Rayleigh-Ritz step on it. A block
+/// Gram-Schmidt twice and `M`-orthonormalised within itself by Cholesky QR) and one
+/// Rayleigh-Ritz step on it. A block
 /// costs one patch solve and one mass product of [`PATCH_MODES`] columns; the images stay known
 /// without `K` (`K W = M V_last - (K V) H` for `W = K^-1 M V_last - V H`). Stop 68 grew the
-/// block to 32 random columns and ran three more steps of subspace iteration: four times the
-/// solves and three times the mass products. One stroke each (a temporary harness, worst
-/// carried mode; the carried answer's time as medians of 11, three rounds interleaved):
-/// the steel bar 3.2e-3 -> 3.0e-3 and 24-25 -> 21-24 ms, the wooden slat 1.2e-4 -> 1.1e-4 and
-/// 22-25 -> 17-19 ms, the iron pipe 1.0e-4 -> 1.1e-4 in the same time. Four blocks (32
-/// columns) were not enough (the bar 4.0e-3), and blocks left without their own
-/// orthonormalisation made the grown basis so ill-conditioned that the bar went to 1.1e-2.
+/// block to 32 random columns and ran three more steps of subspace iteration: three times the
+/// solves and twice the mass products of six blocks. One stroke each at the presets' Poisson
+/// ratios (a temporary harness, worst carried mode), stop 68 against six blocks: the steel
+/// bar 3.1e-3 -> 2.2e-3, the wooden slat 2.4e-4 -> 2.2e-4, the iron pipe 1.0e-4 -> 9.8e-5;
+/// the carried answer no slower (medians of 11, three interleaved rounds on a noisy hour: the
+/// bar 31-36 against 22-29 ms, the slat 25-28 against 20-28). Five blocks gave the slat
+/// 3.6e-4 and four the bar 4.0e-3, and blocks left without their own orthonormalisation made
+/// the grown basis so ill-conditioned that the bar went to 1.1e-2.
 fn krylov_modes(
     factor: &mut ShiftedCholesky,
     pattern: &BlockPattern,
@@ -266,11 +268,12 @@ fn krylov_modes(
 const PATCH_MODES: usize = 8;
 
 /// The grown block when [`PATCH_MODES`] are all below the carried modes ([`patch_modes`],
-/// [`krylov_modes`]: five blocks). On the steel bar's two-block patch (879 DOFs, 25 modes
+/// [`krylov_modes`]: six blocks). On the steel bar's two-block patch (879 DOFs, 25 modes
 /// below) the worst carried mode after one stroke was 8.8e-3 with 8 patch modes; stop 68's
 /// subspace iteration gave 6.4e-3 with 16 and 3.1e-3 with 32 (3.3e-3 with the 29 kept; the
-/// one-block patch with 8: 5.4e-3); the Krylov block 4.0e-3 with 32 and 3.0e-3 with 40.
-const PATCH_MODES_MAX: usize = 40;
+/// one-block patch with 8: 5.4e-3); the Krylov block 4.0e-3 with 32, 3.0e-3 with 40 and
+/// 2.2e-3 with 48.
+const PATCH_MODES_MAX: usize = 48;
 
 /// Patch modes kept above the carried modes' range (the reduced model's modes near its top
 /// draw on the fixed-interface modes just above it).
@@ -388,7 +391,7 @@ mod tests {
         // A slender bar's end (hex27x2): a patch of a few hundred DOFs with many modes below
         // any bound, so the block grows to its widest. Against the patch's dense generalized
         // eigenproblem (an independent solve): the lowest four Ritz values to 1e-9 relative
-        // (measured 5e-13 to 3e-11, the rounding of either solve: five Krylov blocks on an
+        // (measured 5e-13 to 3e-11, the rounding of either solve: six Krylov blocks on an
         // inverse-iterated start resolve the bottom of this 351-DOF spectrum), the images `K_pp Z`, `M_pp Z` as whole products
         // of `Z` padded with zeros (1e-9 and 1e-12 of the scale, as above), and `Z` `M`-
         // orthonormal and `K`-diagonal to 1e-10.
