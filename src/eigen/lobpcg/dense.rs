@@ -60,8 +60,9 @@ pub(crate) fn dense_ritz(
 ///
 /// Measured and not kept (stop 69): dropping such columns as a row-by-row (Crout)
 /// factorisation reaches them, instead of falling back. Most presets' carried answers fall
-/// back (1-21 of their 156-163 columns have shares under 1e-10: corrections of 74 carried
-/// modes on a few hundred DOFs; not the default object, the steel bar or the wooden slat),
+/// back (1-21 of their 156-174 columns have shares under 1e-10: corrections of 74 carried
+/// modes on a few hundred DOFs; not the default object's, the steel bar's, the aluminium
+/// plate's or the plastic crate's),
 /// and dropping saved the ceramic cup, the bell and the glass vase a millisecond or two; but on the iron pipe (Poisson's ratio 0.28, one stroke) it played
 /// modes up to 11 % low, below the exact ones that Ritz values bound from above, where the
 /// fallback and this factorisation with any threshold down to 1e-14 are right (9.8e-5; the

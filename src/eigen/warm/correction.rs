@@ -192,9 +192,9 @@ struct PatchModes {
 /// the block Krylov space of `K_pp^-1 M_pp` on the Ritz vectors `start` (`[Z, K^-1 M Z,
 /// (K^-1 M)^2 Z, ...]`, each block `M`-orthogonalised against the ones before it by classical
 /// Gram-Schmidt twice and `M`-orthonormalised within itself by Cholesky QR) and one
-/// Rayleigh-Ritz step on it. A block
-/// costs one patch solve and one mass product of [`PATCH_MODES`] columns; the images stay known
-/// without `K` (`K W = M V_last - (K V) H` for `W = K^-1 M V_last - V H`). Stop 68 grew the
+/// Rayleigh-Ritz step on it. A block costs one patch solve and one mass product of
+/// [`PATCH_MODES`] columns; the images stay known without `K` (`K W = M V_last - (K V) H` for
+/// `W = K^-1 M V_last - V H`). Stop 68 grew the
 /// block to 32 random columns and ran three more steps of subspace iteration: three times the
 /// solves and twice the mass products of six blocks. One stroke each at the presets' Poisson
 /// ratios (a temporary harness, worst carried mode), stop 68 against six blocks: the steel
