@@ -63,11 +63,12 @@ pub(crate) fn dense_ritz(
 /// back (1-21 of their 156-174 columns have shares under 1e-10: corrections of 74 carried
 /// modes on a few hundred DOFs; not the default object's, the steel bar's, the aluminium
 /// plate's or the plastic crate's),
-/// and dropping saved the ceramic cup, the bell and the glass vase a millisecond or two; but on the iron pipe (Poisson's ratio 0.28, one stroke) it played
-/// modes up to 11 % low, below the exact ones that Ritz values bound from above, where the
-/// fallback and this factorisation with any threshold down to 1e-14 are right (9.8e-5; the
-/// cause was not found), and columns dropped below 1e-8 or 1e-6 cost the steel bar accuracy
-/// (3.0e-3 -> 3.3e-3 and 5.8e-3). `tests/warm_start.rs` holds the pipe.
+/// and dropping saved the ceramic cup, the bell and the glass vase a millisecond or two; but
+/// on the iron pipe (Poisson's ratio 0.28, one stroke) it played modes up to 11 % low, below
+/// the exact ones that Ritz values bound from above, where the fallback and this
+/// factorisation with any threshold down to 1e-14 are right (9.8e-5; the cause was not
+/// found), and columns dropped below 1e-8 or 1e-6 cost the steel bar accuracy (3.0e-3 ->
+/// 3.3e-3 and 5.8e-3). `tests/warm_start.rs` holds the pipe.
 pub(crate) fn dense_ritz_by_cholesky(
     gk: &Mat<f64>,
     gm: &Mat<f64>,
