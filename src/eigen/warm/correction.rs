@@ -392,9 +392,9 @@ mod tests {
         // any bound, so the block grows to its widest. Against the patch's dense generalized
         // eigenproblem (an independent solve): the lowest four Ritz values to 1e-9 relative
         // (measured 5e-13 to 3e-11, the rounding of either solve: six Krylov blocks on an
-        // inverse-iterated start resolve the bottom of this 351-DOF spectrum), the images `K_pp Z`, `M_pp Z` as whole products
-        // of `Z` padded with zeros (1e-9 and 1e-12 of the scale, as above), and `Z` `M`-
-        // orthonormal and `K`-diagonal to 1e-10.
+        // inverse-iterated start resolve the bottom of this 351-DOF spectrum), the images
+        // `K_pp Z`, `M_pp Z` as whole products of `Z` padded with zeros (1e-9 and 1e-12 of the
+        // scale, as above), and `Z` `M`-orthonormal and `K`-diagonal to 1e-10.
         let grid = Primitive::Bar {
             length: 16.0,
             width: 2.0,
