@@ -46,6 +46,7 @@ use super::{
     random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
     SolveTimings, SolverKind,
 };
+use crate::buffer;
 use crate::fem::FemModel;
 use faer::{Mat, MatRef};
 use std::collections::HashSet;
@@ -269,12 +270,14 @@ pub fn ritz(
     let kept: Vec<usize> = sel.keep.iter().map(|&i| pairs[i].1).collect();
     // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
     let rigid: Vec<usize> = pairs.iter().take(sel.rigid).map(|p| p.1).collect();
+    let (vectors, rigid_vectors) = (vectors_of(&kept), vectors_of(&rigid));
+    buffer::recycle(x_rows);
     Ok(EigenSolution {
         eigenvalues: sel.keep.iter().map(|&i| pairs[i].0).collect(),
-        vectors: vectors_of(&kept),
+        vectors,
         residuals: vec![f64::NAN; kept.len()],
         rigid_modes: sel.rigid,
-        rigid_vectors: vectors_of(&rigid),
+        rigid_vectors,
         guard_vectors: Mat::zeros(n, 0),
         guard_eigenvalues: Vec::new(),
         guard_residuals: Vec::new(),

@@ -76,8 +76,6 @@ impl FemModel {
         // Each node's neighbour offsets give the pattern and every element's block positions.
         let rows = sparse::LatticeRows::new(p, nodes, &elements);
         let pattern = rows.pattern(&node_lattice, &lattice_node, lattice);
-        let mut k = crate::buffer::zeroed(pattern.col.len());
-        let mut m = crate::buffer::zeroed(pattern.col.len());
         // Partial voxels (and blocks that are not solid throughout): cut elements, evaluated
         // in batches.
         let per_voxel = cut::subcells_per_axis(kind);
@@ -121,6 +119,23 @@ impl FemModel {
             };
             reuse::Reuse::plan(previous, &mesh, states)
         });
+        // `K` and `M` in kept buffers where the pool has them: after an edit only the summed
+        // rows are cleared (the others are copied over), else every entry.
+        let blocks = pattern.col.len();
+        let (mut k, mut m) = match &reuse {
+            Some(reuse) => {
+                let mut k = crate::buffer::take_unfilled(blocks)
+                    .unwrap_or_else(|_| crate::buffer::zeroed(blocks));
+                let mut m = crate::buffer::take_unfilled(blocks)
+                    .unwrap_or_else(|_| crate::buffer::zeroed(blocks));
+                reuse.clear_summed_rows(&pattern, &mut k, &mut m);
+                (k, m)
+            }
+            None => (
+                crate::buffer::take_zeroed(blocks),
+                crate::buffer::take_zeroed(blocks),
+            ),
+        };
         if let Some(cache) = cache.as_deref_mut() {
             if reuse.is_some() {
                 cache.begin_partial(kind, poisson_ratio);

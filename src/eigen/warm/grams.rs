@@ -29,6 +29,7 @@
 
 use super::super::{EigenSolution, Operators, Which};
 use super::nodes_near;
+use crate::buffer;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::FemModel;
 use crate::fma::mul_add;
@@ -183,9 +184,11 @@ pub(super) fn grams(
     let pm = previous.model;
     let old_blocks = Blocks::of(&pm.pattern, &pm.k, &pm.m);
     let cc = w - fields;
-    // The previous columns by rows on `left` and its neighbours, the rows the sums read (the
-    // rest stays zero, pages the system never maps).
-    let mut old_rows = vec![0.0; 3 * pm.nodes() * cc];
+    // The previous columns by rows on `left` and its neighbours, the only rows the sums read:
+    // a kept buffer, never cleared (a zeroed one was a pass over all 16 MB of the ceramic
+    // cup's wherever the allocator handed back used memory).
+    let len = 3 * pm.nodes() * cc;
+    let mut old_rows = buffer::take_unfilled(len).unwrap_or_else(|_| vec![0.0; len]);
     let mut read = vec![false; pm.nodes()];
     for &o in &left {
         for b in pm.pattern.row_ptr[o]..pm.pattern.row_ptr[o + 1] {
@@ -218,6 +221,7 @@ pub(super) fn grams(
         old_side(Which::K),
         old_side(Which::M),
     );
+    buffer::recycle(old_rows);
     let assemble = |which: Which, new: &Mat<f64>, old: &Mat<f64>, cross: &Mat<f64>| {
         let mut g = Mat::<f64>::zeros(w, w);
         for (c, &j) in others.iter().enumerate() {
@@ -474,6 +478,10 @@ mod tests {
         let old = super::super::transfer::previous_columns(&solution, 8);
         let cc = old.len();
         let map = super::super::node_map(&previous, &next, offset);
+        // Kept buffers full of NaNs for the carried block and the previous rows: an entry read
+        // but never written would show in the Grams.
+        let poison = || crate::buffer::poison_kept(previous.dofs().max(next.dofs()) * (6 + cc));
+        poison();
         let carried = super::super::transfer_rows(&previous, &old, &next, offset, &map, 6);
         let ops = Operators::new(&next);
         let n = next.dofs();
@@ -498,6 +506,7 @@ mod tests {
             columns: &old,
             lambda: &lambda,
         };
+        poison();
         let got = grams(
             &ops,
             &next,

@@ -126,6 +126,15 @@ impl<'a> Reuse<'a> {
             .fold(0, |mask, (i, _)| mask | 1 << i)
     }
 
+    /// Zeroes the rows of `k` and `m` (on `pattern`) that the element loop sums.
+    pub fn clear_summed_rows(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
+        for (a, _) in self.touched.iter().enumerate().filter(|(_, &t)| t) {
+            let row = pattern.row_ptr[a]..pattern.row_ptr[a + 1];
+            k[row.clone()].fill([0.0; 9]);
+            m[row].fill(0.0);
+        }
+    }
+
     /// Copies every untouched row of `k` and `m` (on `pattern`) from the previous model.
     pub fn copy_rows(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
         let previous = self.previous;
@@ -269,6 +278,8 @@ mod tests {
             assert_eq!(cache.stats().misses, 0, "{kind}: every element cached");
             for (edit, edited) in edits(&grid) {
                 let (mut partial, mut whole) = (cache.clone(), cache.clone());
+                // Kept buffers full of NaNs: a row neither copied nor cleared would show.
+                crate::buffer::poison_kept(2 * previous.k.len());
                 let after = FemModel::assemble_after_edit(
                     &edited,
                     kind,
