@@ -2,8 +2,8 @@
 //! buffers kept from one solve to the next.
 //!
 //! Where it sits: under [`crate::eigen`] (LOBPCG blocks, multigrid scratch, Cholesky factors,
-//! carried blocks) and [`crate::fem`]'s assembly, which allocate a few MB to a few hundred MB
-//! per solve. Fresh memory arrives untouched from
+//! a carried answer's Grams) and [`crate::fem`]'s assembly, which allocate a few MB to a few
+//! hundred MB per solve. Fresh memory arrives untouched from
 //! the kernel and is mapped page by page on first write, at ~5 us a 4 KB page on the virtual
 //! machines here: a 32^3 solve takes ~140k page faults, about a fifth of its time, and its
 //! sparse products miss the TLB. Two remedies:
@@ -17,8 +17,8 @@
 //!   time) of the default object's 150 ms cold solve. A Cholesky factor's values and its
 //!   factorisation scratch go back to the pool when it is dropped, and so do a model's `K`
 //!   and `M` ([`crate::fem::FemModel`]): a brush stroke's carried answer assembles the next
-//!   model into them ([`take_unfilled`], the copied rows never cleared) and carries the
-//!   previous modes over in a kept block, the ceramic cup's 0.86x the time (stop 70).
+//!   model into them ([`take_unfilled`], the copied rows never cleared), the ceramic cup's
+//!   0.86x the time with its Grams' previous rows in a kept buffer too (stop 70).
 
 use std::collections::TryReserveError;
 use std::sync::{Mutex, PoisonError};

@@ -46,7 +46,6 @@ use super::{
     random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
     SolveTimings, SolverKind,
 };
-use crate::buffer;
 use crate::fem::FemModel;
 use faer::{Mat, MatRef};
 use std::collections::HashSet;
@@ -270,14 +269,12 @@ pub fn ritz(
     let kept: Vec<usize> = sel.keep.iter().map(|&i| pairs[i].1).collect();
     // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
     let rigid: Vec<usize> = pairs.iter().take(sel.rigid).map(|p| p.1).collect();
-    let (vectors, rigid_vectors) = (vectors_of(&kept), vectors_of(&rigid));
-    buffer::recycle(x_rows);
     Ok(EigenSolution {
         eigenvalues: sel.keep.iter().map(|&i| pairs[i].0).collect(),
-        vectors,
+        vectors: vectors_of(&kept),
         residuals: vec![f64::NAN; kept.len()],
         rigid_modes: sel.rigid,
-        rigid_vectors,
+        rigid_vectors: vectors_of(&rigid),
         guard_vectors: Mat::zeros(n, 0),
         guard_eigenvalues: Vec::new(),
         guard_residuals: Vec::new(),

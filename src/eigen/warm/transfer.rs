@@ -7,7 +7,6 @@
 //! its persisting lattice neighbours.
 
 use super::extra_rigid;
-use crate::buffer;
 use crate::eigen::EigenSolution;
 use crate::fem::FemModel;
 use faer::MatRef;
@@ -153,9 +152,8 @@ impl<'a> PreviousLattice<'a> {
 }
 
 /// [`transfer`] of the previous vectors `columns` (each over the previous model's DOFs) into
-/// a block by rows of `lead + columns.len()` columns whose first `lead` the caller fills (the
-/// instant answer's rigid fields; their values here are unspecified, the block being a kept
-/// buffer, [`buffer::take_unfilled`]): one pass, read in place. `map` is
+/// a block by rows of `lead + columns.len()` columns whose first `lead` are left zero for the
+/// caller (the instant answer's rigid fields): one pass, read in place. `map` is
 /// [`node_map`]'s. The kept nodes go in tiles of [`TILE_NODES`], column by column: each
 /// column is read in order and the tile's rows stay in cache (reading a node's values across
 /// all columns at once, or copying the columns by rows first, took longer).
@@ -169,12 +167,7 @@ pub(super) fn transfer_rows(
 ) -> Transferred {
     let n = next.dofs();
     let width = lead + columns.len();
-    // A kept buffer: a persisting node's carried columns are copied below, a new node's rows
-    // are cleared here to be summed into, and the lead columns are the caller's.
-    let mut block = buffer::take_unfilled(n * width).unwrap_or_else(|_| vec![0.0; n * width]);
-    for (node, _) in map.iter().enumerate().filter(|(_, &o)| o == u32::MAX) {
-        block[3 * node * width..3 * (node + 1) * width].fill(0.0);
-    }
+    let mut block = vec![0.0; n * width];
     for start in (0..map.len()).step_by(TILE_NODES) {
         let tile = &map[start..(start + TILE_NODES).min(map.len())];
         for (j, column) in columns.iter().enumerate() {
@@ -246,38 +239,6 @@ mod tests {
     use crate::fem::ElementKind;
     use crate::shape::primitives::Primitive;
     use faer::Mat;
-
-    #[test]
-    fn new_nodes_start_from_cleared_rows() {
-        // A voxel added beside a sphere brings new nodes, whose rows are sums of their
-        // neighbours: in a kept buffer full of NaNs (which the transfer takes) they must be
-        // cleared first.
-        let grid = Primitive::Sphere { diameter: 5.0 }
-            .rasterize(1.0, 1.0)
-            .unwrap();
-        let kind = ElementKind::Hex8Incompatible;
-        let model = FemModel::assemble(&grid, kind, 0.3).unwrap();
-        let mut grown = grid.clone();
-        let d = grown.dims();
-        let z = (0..d[2])
-            .rev()
-            .find(|&z| grown.get(2, 2, z as isize))
-            .unwrap();
-        let mut taller = crate::shape::VoxelGrid::new([d[0], d[1], z + 2], 1.0).unwrap();
-        for [x, y, z] in grown.solid_voxels() {
-            taller.set(x, y, z, true);
-        }
-        taller.set(2, 2, z + 1, true);
-        grown = taller;
-        let next = FemModel::assemble(&grown, kind, 0.3).unwrap();
-        // Enough columns for a block the pool keeps (over 64 KB).
-        let columns = Mat::<f64>::from_fn(model.dofs(), 40, |i, j| (i + j) as f64);
-        crate::buffer::poison_kept(next.dofs() * 40);
-        let (offset, _) = super::align(&model, &next);
-        let carried = transfer(&model, columns.as_ref(), &next, offset);
-        assert!(carried.new_nodes > 0);
-        assert!(carried.block.iter().all(|v| v.is_finite()));
-    }
 
     #[test]
     fn a_strided_view_transfers_as_its_copy() {
