@@ -17,8 +17,9 @@
 //!   time) of the default object's 150 ms cold solve. A Cholesky factor's values and its
 //!   factorisation scratch go back to the pool when it is dropped, and so do a model's `K`
 //!   and `M` ([`crate::fem::FemModel`]): a brush stroke's carried answer assembles the next
-//!   model into them ([`take_unfilled`], the copied rows never cleared), the ceramic cup's
-//!   0.86x the time with its Grams' previous rows in a kept buffer too (stop 70).
+//!   model into them ([`take_unfilled`], the copied rows never cleared): with its Grams'
+//!   previous rows in a kept buffer too, the ceramic cup's carried answer took 0.91x the time
+//!   (stop 70).
 
 use std::collections::TryReserveError;
 use std::sync::{Mutex, PoisonError};
@@ -196,9 +197,8 @@ pub fn take_unfilled<T: Recycled + Default>(len: usize) -> Result<Vec<T>, TryRes
 /// A vector of `len` zeros: a kept buffer cleared in one pass where the pool has one (its pages
 /// are mapped already), else [`zeroed`] memory from the allocator (mapped on first touch).
 pub fn take_zeroed<T: Recycled + Default>(len: usize) -> Vec<T> {
-    match T::with_pool(|pool| pool.remove_smallest(len)) {
+    match T::with_pool(|pool| pool.take(len)) {
         Some(mut v) => {
-            v.clear();
             v.resize(len, T::default());
             v
         }

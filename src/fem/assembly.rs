@@ -119,8 +119,8 @@ impl FemModel {
             };
             reuse::Reuse::plan(previous, &mesh, states)
         });
-        // `K` and `M` in kept buffers where the pool has them: after an edit only the summed
-        // rows are cleared (the others are copied over), else every entry.
+        // `K` and `M` in kept buffers where the pool has them: after an edit the untouched
+        // rows are copied over and only the summed ones cleared, else every entry is.
         let blocks = pattern.col.len();
         let (mut k, mut m) = match &reuse {
             Some(reuse) => {
@@ -128,7 +128,7 @@ impl FemModel {
                     .unwrap_or_else(|_| crate::buffer::zeroed(blocks));
                 let mut m = crate::buffer::take_unfilled(blocks)
                     .unwrap_or_else(|_| crate::buffer::zeroed(blocks));
-                reuse.clear_summed_rows(&pattern, &mut k, &mut m);
+                reuse.prefill(&pattern, &mut k, &mut m);
                 (k, m)
             }
             None => (
@@ -315,10 +315,8 @@ impl FemModel {
             cache.as_deref_mut(),
             orbits.as_mut(),
         );
-        match (&reuse, cache) {
-            (Some(reuse), _) => reuse.copy_rows(&pattern, &mut k, &mut m),
-            (None, Some(cache)) => cache.finish(),
-            (None, None) => {}
+        if let (None, Some(cache)) = (&reuse, cache) {
+            cache.finish();
         }
         Ok(FemModel {
             kind,

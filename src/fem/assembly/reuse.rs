@@ -5,7 +5,8 @@
 //! answer, [`crate::basis::ModeBasis::carried_ritz`]) plans a [`Reuse`] once the new mesh's
 //! nodes and pattern are known; the element loop of the assembly then skips the elements with
 //! no touched node and adds only the touched rows of the others
-//! ([`crate::fem::sparse::add_element_rows`]), and [`Reuse::copy_rows`] fills in the rest.
+//! ([`crate::fem::sparse::add_element_rows`]) into the rows [`Reuse::prefill`] cleared, the
+//! rest copied by it.
 //! A stroke changes a few cells of a mesh of thousands, so a cached assembly then spends its
 //! time on the copy instead of on keying, looking up and scattering every element (the
 //! ceramic cup's: ~60 % of its time was the scatter and the cache keys).
@@ -126,26 +127,22 @@ impl<'a> Reuse<'a> {
             .fold(0, |mask, (i, _)| mask | 1 << i)
     }
 
-    /// Zeroes the rows of `k` and `m` (on `pattern`) that the element loop sums.
-    pub fn clear_summed_rows(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
-        for (a, _) in self.touched.iter().enumerate().filter(|(_, &t)| t) {
-            let row = pattern.row_ptr[a]..pattern.row_ptr[a + 1];
-            k[row.clone()].fill([0.0; 9]);
-            m[row].fill(0.0);
-        }
-    }
-
-    /// Copies every untouched row of `k` and `m` (on `pattern`) from the previous model.
-    pub fn copy_rows(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
+    /// Fills `k` and `m` (on `pattern`, buffers of unspecified values) before the element
+    /// loop: every untouched row copied from the previous model, every touched row zeroed for
+    /// the loop to sum into.
+    pub fn prefill(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
         let previous = self.previous;
-        for (a, _) in self.touched.iter().enumerate().filter(|(_, &t)| !t) {
-            let o = previous.lattice_node[self.node_lattice[a]] as usize;
-            let (to, from) = (
-                pattern.row_ptr[a]..pattern.row_ptr[a + 1],
-                previous.pattern.row_ptr[o]..previous.pattern.row_ptr[o + 1],
-            );
-            k[to.clone()].copy_from_slice(&previous.k[from.clone()]);
-            m[to].copy_from_slice(&previous.m[from]);
+        for (a, &touched) in self.touched.iter().enumerate() {
+            let to = pattern.row_ptr[a]..pattern.row_ptr[a + 1];
+            if touched {
+                k[to.clone()].fill([0.0; 9]);
+                m[to].fill(0.0);
+            } else {
+                let o = previous.lattice_node[self.node_lattice[a]] as usize;
+                let from = previous.pattern.row_ptr[o]..previous.pattern.row_ptr[o + 1];
+                k[to.clone()].copy_from_slice(&previous.k[from.clone()]);
+                m[to].copy_from_slice(&previous.m[from]);
+            }
         }
     }
 }
