@@ -418,7 +418,9 @@ fn main() {
         let mut cache = ElementCache::new();
         FemModel::assemble_cached(&grid, kind, nu, Some(&mut cache)).expect("model");
         let mut warm_cols = Vec::new();
-        let mut previous = cold.clone();
+        // Shared, as the engine's chain holds it: the carried answer keeps its vectors as
+        // factors over it (`ModeBasis::carried_ritz_factored`).
+        let mut previous = std::sync::Arc::new(cold.clone());
         let mut current = grid.clone();
         for add in [true, false] {
             let edited = stroke(&current, add);
@@ -428,7 +430,7 @@ fn main() {
                 .map(|_| {
                     let mut chain_cache = cache.clone();
                     let t = Instant::now();
-                    let carried = ModeBasis::carried_ritz(
+                    let carried = ModeBasis::carried_ritz_factored(
                         &edited,
                         kind,
                         nu,
@@ -477,7 +479,7 @@ fn main() {
                 warm.solution.iterations,
                 max_relative_difference(&warm, &reference)
             ));
-            previous = warm;
+            previous = std::sync::Arc::new(warm);
             current = edited;
         }
         // The editor's mirror mode: the stroke and its images, from the object as loaded.

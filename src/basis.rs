@@ -23,7 +23,9 @@ use crate::material::{DampedMode, Material};
 use crate::modes::{ModeError, ModeSet};
 use crate::shape::lattice_index;
 use crate::shape::{ops, ShapeError, VoxelGrid};
+use std::sync::Arc;
 
+mod carried;
 mod surface;
 mod unison;
 
@@ -78,6 +80,9 @@ pub struct ModeBasis {
     /// The shape's exposed voxel faces, found once so that voicing a strike does not rescan
     /// the grid.
     surface: Vec<Face>,
+    /// A carried answer's Ritz vectors as factors over the answer it was carried from
+    /// ([`ModeBasis::carried_ritz_factored`]); `solution.vectors` then has no columns.
+    factored: Option<Arc<carried::Factored>>,
 }
 
 /// Why a shape could not be solved.
@@ -261,6 +266,20 @@ impl ModeBasis {
         previous: &ModeBasis,
         cache: Option<&mut ElementCache>,
     ) -> Option<Result<Self, BasisError>> {
+        let from = carried::CarriedFrom::Formed(previous);
+        Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
+    }
+
+    /// [`ModeBasis::carried_ritz`] of `grid` with an element and a Poisson's ratio, its vectors
+    /// formed or factored as `from` says.
+    fn carried_with(
+        grid: &VoxelGrid,
+        (element, poisson_ratio): (ElementKind, f64),
+        count: usize,
+        from: carried::CarriedFrom,
+        cache: Option<&mut ElementCache>,
+    ) -> Option<Result<Self, BasisError>> {
+        let previous = from.basis();
         let old = &previous.model;
         if old.kind != element || old.poisson_ratio != poisson_ratio {
             return None;
@@ -276,9 +295,26 @@ impl ModeBasis {
         if (overlap as f64) < WARM_MIN_OVERLAP * most {
             return None;
         }
+        let answer = match from {
+            carried::CarriedFrom::Formed(_) => {
+                eigen::warm::ritz(&model, old, &previous.solution, offset, count)
+                    .map(|solution| (solution, None))
+            }
+            carried::CarriedFrom::Factored(from) => eigen::warm::ritz_factored(
+                &model,
+                old,
+                &previous.solution,
+                offset,
+                count,
+                carried::MAX_FACTORED_WIDTH,
+            )
+            .map(|(solution, rows)| (solution, rows.map(|r| carried::Factored::new(from, r)))),
+        };
         Some(
-            eigen::warm::ritz(&model, old, &previous.solution, offset, count)
-                .map(|solution| Self::from_parts(grid, model, solution, assemble_ms))
+            answer
+                .map(|(solution, factored)| {
+                    Self::from_parts_with(grid, model, solution, assemble_ms, factored)
+                })
                 .map_err(BasisError::from),
         )
     }
@@ -289,6 +325,16 @@ impl ModeBasis {
         solution: EigenSolution,
         assemble_ms: f64,
     ) -> Self {
+        Self::from_parts_with(grid, model, solution, assemble_ms, None)
+    }
+
+    fn from_parts_with(
+        grid: &VoxelGrid,
+        model: FemModel,
+        solution: EigenSolution,
+        assemble_ms: f64,
+        factored: Option<carried::Factored>,
+    ) -> Self {
         let mut basis = ModeBasis {
             shape_hash: grid.shape_hash(),
             components: ops::components(grid).1,
@@ -297,6 +343,7 @@ impl ModeBasis {
             solution,
             assemble_ms,
             surface: exposed_faces(grid),
+            factored: factored.map(Arc::new),
         };
         basis.orient_to_default_hit();
         basis
@@ -311,7 +358,7 @@ impl ModeBasis {
     /// as a pickup at the strike point hears them. A mode silent there keeps its sign.
     fn orient_to_default_hit(&mut self) {
         let hit = self.default_hit(1.0);
-        let mut forces = vec![0.0; self.solution.vectors.ncols()];
+        let mut forces = vec![0.0; self.mode_count()];
         if self
             .projected_forces_into(&hit, 1.0, &mut forces, false)
             .is_err()
@@ -320,11 +367,10 @@ impl ModeBasis {
         }
         for (j, f) in forces.iter().enumerate() {
             if *f < 0.0 {
-                self.solution
-                    .vectors
-                    .col_mut(j)
-                    .iter_mut()
-                    .for_each(|v| *v = -*v);
+                match self.factored.as_mut().and_then(Arc::get_mut) {
+                    Some(factored) => factored.negate(j),
+                    None => (self.solution.vectors.col_mut(j).iter_mut()).for_each(|v| *v = -*v),
+                }
             }
         }
     }
@@ -350,7 +396,7 @@ impl ModeBasis {
         voxel_size_m: f64,
         hit: &Hit,
     ) -> Result<Vec<f64>, BasisError> {
-        let mut out = vec![0.0; self.solution.vectors.ncols()];
+        let mut out = vec![0.0; self.mode_count()];
         self.reference_forces_into(hit, voxel_size_m, &mut out)
             .map_err(|e| BasisError::BadHit(e.to_string()))?;
         let scale = 1.0 / (material.density_kg_m3 * voxel_size_m.powi(3)).sqrt();
@@ -395,16 +441,23 @@ impl ModeBasis {
             }
             None => face.normal,
         };
-        let v = &self.solution.vectors;
-        for (i, o) in out.iter_mut().take(v.ncols()).enumerate() {
-            let col = v.col_as_slice(i);
-            *o = face.nodes[..face.len]
-                .iter()
-                .map(|&(node, w)| w * (0..3).map(|c| col[3 * node + c] * dir[c]).sum::<f64>())
-                .sum::<f64>();
+        let count = self.mode_count().min(out.len());
+        match &self.factored {
+            Some(factored) => factored.forces_into(&self.model, &face, dir, &mut out[..count]),
+            None => {
+                let v = &self.solution.vectors;
+                for (i, o) in out.iter_mut().take(count).enumerate() {
+                    let col = v.col_as_slice(i);
+                    *o = face.nodes[..face.len]
+                        .iter()
+                        .map(|&(node, w)| {
+                            w * (0..3).map(|c| col[3 * node + c] * dir[c]).sum::<f64>()
+                        })
+                        .sum::<f64>();
+                }
+            }
         }
         if merge_unisons {
-            let count = v.ncols().min(out.len());
             strike_align_unisons(&self.solution.eigenvalues, &mut out[..count]);
         }
         Ok(())

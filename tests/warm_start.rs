@@ -378,3 +378,89 @@ fn a_wide_patch_and_its_extra_modes_tune_the_carried_answer_on_small_objects() {
         assert!(worst < bound, "{name}: worst {worst:.1e}");
     }
 }
+
+#[test]
+fn a_factored_carried_answer_strikes_as_the_formed_one() {
+    // The engine's carried answer keeps its Ritz vectors as factors over the exact answer it
+    // was carried from (`ModeBasis::carried_ritz_factored`) and forms a strike's rows on
+    // demand; `carried_ritz` forms the vectors by one dense product. Two strokes on a
+    // hex27x2 cup (new nodes, the relaxed patch and its modes all in play): the same
+    // eigenvalues to the bit (the same Rayleigh-Ritz step), and the same forces, after the
+    // same orientation, at the default hit, beside the strokes and at points all round, to
+    // 1e-10 of the largest (rounding of sums over ~200 factors in another order).
+    let kind = ElementKind::Hex27Blocks;
+    let grid = modalforge::shape::spec::primitive_voxels(
+        &Primitive::Cup {
+            diameter: 12.0,
+            height: 12.0,
+            wall: 1.0,
+        },
+        None,
+        1.0,
+        kind.voxels_per_element(),
+    )
+    .expect("a cup");
+    let options = EigenOptions {
+        count: ModeCount::First(30),
+        ..Default::default()
+    };
+    let before = std::sync::Arc::new(
+        ModeBasis::solve(&grid, kind, NU, SolverKind::Auto, &options).expect("cold solve"),
+    );
+    let edited = bump_stroke(&bump_stroke(&grid));
+    let formed = ModeBasis::carried_ritz(&edited, kind, NU, 30, &before, None)
+        .expect("an edit of the same object")
+        .expect("carried answer");
+    let factored = ModeBasis::carried_ritz_factored(&edited, kind, NU, 30, &before, None)
+        .expect("an edit of the same object")
+        .expect("carried answer");
+    assert!(factored.is_factored() && !formed.is_factored());
+    assert_eq!(factored.solution.vectors.ncols(), 0);
+    assert_eq!(factored.solution.eigenvalues, formed.solution.eigenvalues);
+    let d = edited.dims().map(|v| v as f64);
+    let mut hits = vec![formed.default_hit(1.0)];
+    // On the voxels the strokes added (each face's centre: their new nodes), and round about.
+    let [dx, dy, dz] = edited.dims();
+    for (x, y, z) in
+        (0..dx).flat_map(|x| (0..dy).flat_map(move |y| (0..dz).map(move |z| (x, y, z))))
+    {
+        let (xi, yi, zi) = (x as isize, y as isize, z as isize);
+        if edited.get(xi, yi, zi) && !grid.get(xi, yi, zi) {
+            let centre = [x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5];
+            for axis in 0..3 {
+                for side in [-0.5, 0.5] {
+                    let mut point_m = centre;
+                    point_m[axis] += side;
+                    hits.push(modalforge::basis::Hit {
+                        point_m,
+                        direction: Some([0.3, -0.2, -1.0]),
+                    });
+                }
+            }
+        }
+    }
+    assert!(hits.len() > 1, "the strokes added voxels");
+    for k in 0..12 {
+        let t = k as f64 / 12.0;
+        let angle = std::f64::consts::TAU * t;
+        hits.push(modalforge::basis::Hit {
+            point_m: [
+                0.5 * d[0] * (1.0 + angle.cos()),
+                0.5 * d[1] * (1.0 + angle.sin()),
+                d[2] * t,
+            ],
+            direction: (k % 2 == 0).then_some([angle.sin(), 0.5, -angle.cos()]),
+        });
+    }
+    let n = formed.mode_count();
+    for hit in &hits {
+        let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+        formed.reference_forces_into(hit, 1.0, &mut a).unwrap();
+        factored.reference_forces_into(hit, 1.0, &mut b).unwrap();
+        let scale = a.iter().fold(0.0f64, |m, f| m.max(f.abs()));
+        assert!(scale > 0.0);
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-10 * scale, "{hit:?}: {a:?} vs {b:?}");
+        }
+    }
+}

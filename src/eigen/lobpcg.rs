@@ -37,7 +37,7 @@ pub(crate) use dense::{dense_ritz, dense_ritz_by_cholesky};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use start::nested_start;
-pub(crate) use start::rigid_fields;
+pub(crate) use start::{rigid_centre, rigid_fields, rigid_row};
 use std::time::Instant;
 
 /// Columns per V-cycle (the multigrid scratch is sized for this many).

@@ -33,14 +33,16 @@
 
 mod correction;
 mod grams;
+mod rows;
 mod transfer;
 
+pub use rows::RitzRows;
 pub use transfer::{align, align_voxels, transfer, Transferred};
 use transfer::{node_map, previous_columns, transfer_rows};
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
-use super::lobpcg::{self, rigid_fields};
+use super::lobpcg::{self, rigid_centre, rigid_fields};
 use super::stop::Stop;
 use super::{
     random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
@@ -151,6 +153,41 @@ pub fn ritz(
     offset: [i64; 3],
     count: usize,
 ) -> Result<EigenSolution, EigenError> {
+    ritz_with(next, previous, previous_solution, offset, count, None).map(|(s, _)| s)
+}
+
+/// [`ritz`] with the Ritz vectors left in factored form where they are at most `max_width`
+/// factors wide ([`RitzRows`]: any row of them on demand): the solution's `vectors` and
+/// `rigid_vectors` then have no columns. Wider (a large correction), they are formed as by
+/// [`ritz`] and the rows are `None`. The engine's carried answer, which a strike reads a few
+/// rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]).
+pub fn ritz_factored(
+    next: &FemModel,
+    previous: &FemModel,
+    previous_solution: &EigenSolution,
+    offset: [i64; 3],
+    count: usize,
+    max_width: usize,
+) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
+    ritz_with(
+        next,
+        previous,
+        previous_solution,
+        offset,
+        count,
+        Some(max_width),
+    )
+}
+
+/// [`ritz`], its vectors factored where `factored` bounds their width ([`ritz_factored`]).
+fn ritz_with(
+    next: &FemModel,
+    previous: &FemModel,
+    previous_solution: &EigenSolution,
+    offset: [i64; 3],
+    count: usize,
+    factored: Option<usize>,
+) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     let t0 = Instant::now();
     // No norms: this answer reports no residuals.
     let ops = Operators::without_norms(next);
@@ -186,7 +223,6 @@ pub fn ritz(
     {
         row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
     }
-    let x = MatRef::from_row_major_slice(&x_rows, n, w);
     let edited = edited_cells(previous, next, offset);
     let patch = edited.as_ref().and_then(|e| edit_patch(next, e));
     let extra = extra_rigid(previous_solution).ncols();
@@ -262,27 +298,10 @@ pub fn ritz(
     // this answer on a large object, for a figure nothing reads (the answer plays until the
     // exact one lands; its error is the status line's).
     let kept: Vec<usize> = sel.keep.iter().map(|&i| pairs[i].1).collect();
-    // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
-    let cols: Vec<usize> = (kept.iter())
-        .chain(pairs.iter().take(sel.rigid).map(|p| &p.1))
-        .copied()
-        .collect();
-    let c_x = Mat::from_fn(w, cols.len(), |i, j| c[(i, cols[j])]);
-    let mut v = x * &c_x;
-    if let Some(cor) = &correction {
-        let c_d = Mat::from_fn(cor.delta.ncols(), cols.len(), |i, j| c[(w + i, cols[j])]);
-        let local = &cor.delta * &c_d;
-        for (i, &d) in cor.dofs.iter().enumerate() {
-            for j in 0..cols.len() {
-                v[(d, j)] += local[(i, j)];
-            }
-        }
-    }
-    let rigid_vectors = v.get(.., kept.len()..).to_owned();
-    v.truncate(n, kept.len());
-    Ok(EigenSolution {
-        eigenvalues: sel.keep.iter().map(|&i| pairs[i].0).collect(),
-        vectors: v,
+    let eigenvalues: Vec<f64> = sel.keep.iter().map(|&i| pairs[i].0).collect();
+    let answer = |vectors: Mat<f64>, rigid_vectors: Mat<f64>| EigenSolution {
+        eigenvalues: eigenvalues.clone(),
+        vectors,
         residuals: vec![f64::NAN; kept.len()],
         rigid_modes: sel.rigid,
         rigid_vectors,
@@ -296,7 +315,47 @@ pub fn ritz(
         iterations: 0,
         solver: SolverKind::Lobpcg,
         warm_start: true,
-    })
+    };
+    let s = c.nrows();
+    if factored.is_some_and(|max_width| s <= max_width) {
+        // The factors instead (`warm/rows.rs`): the rigid modes are not kept either (a warm
+        // start reads them only where they are more than a whole's six, [`extra_rigid`], and
+        // this answer is never one).
+        let rows = RitzRows {
+            coefficients: Mat::from_fn(s, kept.len(), |i, j| c[(i, kept[j])]),
+            fields,
+            centre: if fields > 0 {
+                rigid_centre(next)
+            } else {
+                [0.0; 3]
+            },
+            guards: previous_solution.guard_vectors.ncols().min(RITZ_GUARDS),
+            fresh: transfer::new_node_sources(previous, next, offset, &map),
+            map,
+            correction: correction.map(|cor| (cor.dofs, cor.delta)),
+        };
+        return Ok((answer(Mat::zeros(n, 0), Mat::zeros(n, 0)), Some(rows)));
+    }
+    // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
+    let cols: Vec<usize> = (kept.iter())
+        .chain(pairs.iter().take(sel.rigid).map(|p| &p.1))
+        .copied()
+        .collect();
+    let c_x = Mat::from_fn(w, cols.len(), |i, j| c[(i, cols[j])]);
+    let x = MatRef::from_row_major_slice(&x_rows, n, w);
+    let mut v = x * &c_x;
+    if let Some(cor) = &correction {
+        let c_d = Mat::from_fn(cor.delta.ncols(), cols.len(), |i, j| c[(w + i, cols[j])]);
+        let local = &cor.delta * &c_d;
+        for (i, &d) in cor.dofs.iter().enumerate() {
+            for j in 0..cols.len() {
+                v[(d, j)] += local[(i, j)];
+            }
+        }
+    }
+    let rigid_vectors = v.get(.., kept.len()..).to_owned();
+    v.truncate(n, kept.len());
+    Ok((answer(v, rigid_vectors), None))
 }
 
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough

@@ -327,7 +327,9 @@ impl ModeSolver for CarriedRitzSolver {
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
         let previous = lock(&self.last).clone().ok_or(BasisError::NoPrevious)?;
-        ModeBasis::carried_ritz(
+        // Its vectors stay factors over the last exact answer: a strike reads a face's rows
+        // of them (`basis/carried.rs`).
+        ModeBasis::carried_ritz_factored(
             &r.grid,
             r.element,
             r.poisson_ratio,

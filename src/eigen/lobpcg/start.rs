@@ -16,31 +16,45 @@ use crate::fem::FemModel;
 /// The six rigid-body fields (translations, rotations about the centroid), row-major `n x 6`.
 pub(crate) fn rigid_fields(model: &FemModel) -> Vec<f64> {
     let nodes = model.nodes();
+    let centre = rigid_centre(model);
+    let mut out = vec![0.0; 3 * nodes * 6];
+    for i in 0..nodes {
+        let p = model.node_position(i);
+        for c in 0..3 {
+            let row = (3 * i + c) * 6;
+            out[row..row + 6].copy_from_slice(&rigid_row(p, centre, c));
+        }
+    }
+    out
+}
+
+/// The centroid of `model`'s nodes, about which [`rigid_fields`] rotates.
+pub(crate) fn rigid_centre(model: &FemModel) -> [f64; 3] {
+    let nodes = model.nodes();
     let mut centre = [0.0; 3];
     for i in 0..nodes {
         let p = model.node_position(i);
         (0..3).for_each(|a| centre[a] += p[a] / nodes as f64);
     }
-    let mut out = vec![0.0; 3 * nodes * 6];
-    for i in 0..nodes {
-        let p = model.node_position(i);
-        let r = [0, 1, 2].map(|a| p[a] - centre[a]);
-        for c in 0..3 {
-            let row = (3 * i + c) * 6;
-            out[row + c] = 1.0;
-            // Rotation about axis q: (e_q x r)_c.
-            for q in 0..3 {
-                let e = [0, 1, 2].map(|a| if a == q { 1.0 } else { 0.0 });
-                let cross = [
-                    e[1] * r[2] - e[2] * r[1],
-                    e[2] * r[0] - e[0] * r[2],
-                    e[0] * r[1] - e[1] * r[0],
-                ];
-                out[row + 3 + q] = cross[c];
-            }
-        }
+    centre
+}
+
+/// The six rigid fields' component `c` at a node at `p` ([`rigid_fields`]' row for that DOF).
+pub(crate) fn rigid_row(p: [f64; 3], centre: [f64; 3], c: usize) -> [f64; 6] {
+    let r = [0, 1, 2].map(|a| p[a] - centre[a]);
+    let mut row = [0.0; 6];
+    row[c] = 1.0;
+    // Rotation about axis q: (e_q x r)_c.
+    for q in 0..3 {
+        let e = [0, 1, 2].map(|a| if a == q { 1.0 } else { 0.0 });
+        let cross = [
+            e[1] * r[2] - e[2] * r[1],
+            e[2] * r[0] - e[0] * r[2],
+            e[0] * r[1] - e[1] * r[0],
+        ];
+        row[3 + q] = cross[c];
     }
-    out
+    row
 }
 
 /// The starting block: how many columns must converge and the block itself (`n x m`).

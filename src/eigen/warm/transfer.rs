@@ -183,30 +183,24 @@ pub(super) fn transfer_rows(
         }
     }
     // A new node: the mean of its persisting lattice neighbours.
-    let lattice = PreviousLattice::new(previous, next, offset);
-    let mut fresh = 0;
-    for (node, _) in map.iter().enumerate().filter(|(_, &o)| o == u32::MAX) {
-        fresh += 1;
+    let fresh = new_node_sources(previous, next, offset, map);
+    for (node, sources) in &fresh {
         let rows = &mut block[3 * node * width..3 * (node + 1) * width];
-        let q = lattice.place(next, node);
-        let mut count = 0.0;
-        for d in 0..27i64 {
-            let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
-            if let Some(o) = lattice.node([0, 1, 2].map(|a| q[a] + step[a])) {
-                count += 1.0;
-                for (c, row) in rows.chunks_exact_mut(width).enumerate() {
-                    for (r, column) in row[lead..].iter_mut().zip(columns) {
-                        *r += column[3 * o + c];
-                    }
+        for &o in sources {
+            for (c, row) in rows.chunks_exact_mut(width).enumerate() {
+                for (r, column) in row[lead..].iter_mut().zip(columns) {
+                    *r += column[3 * o + c];
                 }
             }
         }
-        if count > 0.0 {
+        if !sources.is_empty() {
+            let count = sources.len() as f64;
             for row in rows.chunks_exact_mut(width) {
                 row[lead..].iter_mut().for_each(|v| *v /= count);
             }
         }
     }
+    let fresh = fresh.len();
     Transferred {
         block,
         columns: width,
@@ -215,19 +209,47 @@ pub(super) fn transfer_rows(
     }
 }
 
+/// Each new node of `map` (`u32::MAX`), ascending, with the previous nodes at its persisting
+/// lattice neighbours (of the 26 around it, in a fixed order), whose mean it carries.
+pub(super) fn new_node_sources(
+    previous: &FemModel,
+    next: &FemModel,
+    offset: [i64; 3],
+    map: &[u32],
+) -> Vec<(usize, Vec<usize>)> {
+    let lattice = PreviousLattice::new(previous, next, offset);
+    (map.iter().enumerate())
+        .filter(|(_, &o)| o == u32::MAX)
+        .map(|(node, _)| {
+            let q = lattice.place(next, node);
+            let sources = (0..27i64)
+                .filter_map(|d| {
+                    let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
+                    lattice.node([0, 1, 2].map(|a| q[a] + step[a]))
+                })
+                .collect();
+            (node, sources)
+        })
+        .collect()
+}
+
 /// Nodes per tile of [`transfer_rows`].
 const TILE_NODES: usize = 32;
 
-/// The columns a warm start carries, in place: the extra rigid modes (if any,
+/// The matrices whose columns a warm start carries: the extra rigid modes (if any,
 /// [`extra_rigid`]), the modes, and at most `guards` guard vectors.
-pub(super) fn previous_columns(previous: &EigenSolution, guards: usize) -> Vec<&[f64]> {
+pub(super) fn previous_parts(previous: &EigenSolution, guards: usize) -> [MatRef<'_, f64>; 3] {
     let guards = previous.guard_vectors.ncols().min(guards);
-    let parts = [
+    [
         extra_rigid(previous),
         previous.vectors.as_ref(),
         previous.guard_vectors.get(.., ..guards),
-    ];
-    parts
+    ]
+}
+
+/// The columns of [`previous_parts`], in place.
+pub(super) fn previous_columns(previous: &EigenSolution, guards: usize) -> Vec<&[f64]> {
+    previous_parts(previous, guards)
         .into_iter()
         .flat_map(|part| (0..part.ncols()).map(move |j| column_slice(part, j)))
         .collect()

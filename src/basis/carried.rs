@@ -1,0 +1,127 @@
+//! The engine's carried answer to a brush stroke, its vectors kept as factors.
+//!
+//! Where it sits: [`ModeBasis::carried_ritz_factored`] is what the worker's
+//! [`crate::engine::CarriedRitzSolver`] plays after every stroke. It is
+//! [`ModeBasis::carried_ritz`] without the last step, the dense product that forms the Ritz
+//! vectors over the whole mesh (on the presets 15-25 % of that answer: 10 ms of the ceramic
+//! cup's 45, 29.5k rows by 74 columns by 60 modes). A strike reads the vectors at one face's
+//! nodes, so the basis keeps the factors ([`RitzRows`], over the exact answer the stroke was
+//! carried from) and a strike forms the weighted sum of the face's rows first and multiplies
+//! it by the coefficients once: a few thousand multiply-adds, no allocation, as the audio
+//! thread needs ([`ModeBasis::reference_forces_into`]).
+
+use super::{BasisError, FaceWeights, ModeBasis};
+use crate::eigen::warm::RitzRows;
+use crate::fem::{ElementCache, ElementKind, FemModel};
+use crate::shape::VoxelGrid;
+use std::sync::Arc;
+
+/// Widest factored block (rows of the coefficients) a carried answer keeps as factors: a
+/// strike sums its rows into a buffer on the stack. The presets' answers are 150-190 wide
+/// (74 carried columns, as many corrections and up to 36 patch modes); a wider one has its
+/// vectors formed.
+pub(super) const MAX_FACTORED_WIDTH: usize = 320;
+
+/// The answer a stroke is carried from, and whether the carried answer's vectors are formed
+/// over the whole mesh or kept as factors over it.
+pub(super) enum CarriedFrom<'a> {
+    /// Formed ([`ModeBasis::carried_ritz`]).
+    Formed(&'a ModeBasis),
+    /// Factored ([`ModeBasis::carried_ritz_factored`]).
+    Factored(&'a Arc<ModeBasis>),
+}
+
+impl CarriedFrom<'_> {
+    pub(super) fn basis(&self) -> &ModeBasis {
+        match self {
+            CarriedFrom::Formed(b) => b,
+            CarriedFrom::Factored(b) => b,
+        }
+    }
+}
+
+/// A carried answer's vectors: the factors, and the answer they were carried from (whose
+/// vectors they read in place).
+#[derive(Debug)]
+pub(super) struct Factored {
+    previous: Arc<ModeBasis>,
+    rows: RitzRows,
+}
+
+impl Factored {
+    pub(super) fn new(previous: &Arc<ModeBasis>, rows: RitzRows) -> Self {
+        Factored {
+            previous: previous.clone(),
+            rows,
+        }
+    }
+
+    /// Turns mode `j` over.
+    pub(super) fn negate(&mut self, j: usize) {
+        self.rows
+            .coefficients
+            .col_mut(j)
+            .iter_mut()
+            .for_each(|v| *v = -*v);
+    }
+
+    /// Each mode's value at the struck face, dotted with `dir`, into `out`: the face's rows of
+    /// the factored block weighted and summed, times the coefficients. Never allocates.
+    pub(super) fn forces_into(
+        &self,
+        model: &FemModel,
+        face: &FaceWeights,
+        dir: [f64; 3],
+        out: &mut [f64],
+    ) {
+        let s = self.rows.width();
+        let (mut sum, mut row) = ([0.0; MAX_FACTORED_WIDTH], [0.0; MAX_FACTORED_WIDTH]);
+        let previous = &self.previous.solution;
+        for &(node, w) in &face.nodes[..face.len] {
+            for (c, &d) in dir.iter().enumerate() {
+                let a = w * d;
+                if a != 0.0 {
+                    self.rows
+                        .row_into(previous, model, 3 * node + c, &mut row[..s]);
+                    for (acc, v) in sum[..s].iter_mut().zip(&row[..s]) {
+                        *acc += a * v;
+                    }
+                }
+            }
+        }
+        let coefficients = &self.rows.coefficients;
+        for (j, o) in out.iter_mut().take(coefficients.ncols()).enumerate() {
+            *o = coefficients
+                .col(j)
+                .iter()
+                .zip(&sum[..s])
+                .map(|(c, y)| c * y)
+                .sum();
+        }
+    }
+}
+
+impl ModeBasis {
+    /// [`ModeBasis::carried_ritz`] with the Ritz vectors kept as factors over `previous`
+    /// (see the module docs): the same eigenvalues and the same strikes, to rounding
+    /// (`tests/warm_start.rs`), without the dense product that forms the vectors. Its
+    /// `solution.vectors` has no columns (nothing but a strike reads a carried answer's
+    /// vectors: it is never the start of another), except where the factors are wider than
+    /// a strike's buffer, when they are formed as by [`ModeBasis::carried_ritz`].
+    pub fn carried_ritz_factored(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        count: usize,
+        previous: &Arc<ModeBasis>,
+        cache: Option<&mut ElementCache>,
+    ) -> Option<Result<Self, BasisError>> {
+        let from = CarriedFrom::Factored(previous);
+        Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
+    }
+
+    /// Whether the vectors are kept as factors ([`ModeBasis::carried_ritz_factored`]).
+    pub fn is_factored(&self) -> bool {
+        self.factored.is_some()
+    }
+}
