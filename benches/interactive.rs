@@ -6,9 +6,10 @@
 //! - **cold**: assembly + a solve from scratch (the time split, the solver that ran), the
 //!   median of [`COLD_RUNS`] runs;
 //! - **ritz / warm**: after a one-voxel brush stroke (a voxel added on the surface, then one
-//!   removed), the instant carried answer ([`ModeBasis::carried_ritz`]) and the exact modes
-//!   refined from the previous shape's ([`ModeBasis::solve_warm`]) with its iterations, each
-//!   with the largest frequency difference from a cold solve of the same edited shape;
+//!   removed), the instant carried answer as the engine plays it
+//!   ([`ModeBasis::carried_ritz_factored`]) and the exact modes refined from the previous
+//!   shape's ([`ModeBasis::solve_warm`]) with its iterations, each with the largest
+//!   frequency difference from a cold solve of the same edited shape;
 //! - **exact~**: the exact answer (the chain's, element cache included) to a stroke made in
 //!   the editor's mirror mode on the object as loaded: the added voxel and its images across
 //!   every centre plane the object is symmetric in, which keeps its mirrors (a lone stroke's

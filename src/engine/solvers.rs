@@ -10,7 +10,8 @@
 //!    ([`coarse_expected_error`]: larger for one-voxel walls);
 //! 2. [`CarriedRitzSolver`], the instant answer to a brush stroke: the last exact modes
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
-//!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]);
+//!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]), its vectors kept as
+//!    factors over the last exact answer ([`ModeBasis::carried_ritz_factored`]);
 //! 3. [`IncrementalFemSolver`], the exact answer (a cold solve: the warm-started exact solve,
 //!    [`ModeBasis::solve_warm`], measured slower; ARCHITECTURE.md); it keeps the answer for
 //!    the next stroke's carried answer. A drag interrupts it at every stroke; once it has
