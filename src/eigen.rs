@@ -153,7 +153,8 @@ pub struct SolveTimings {
 pub struct EigenSolution {
     /// Eigenvalues `omega^2` (reference units), ascending.
     pub eigenvalues: Vec<f64>,
-    /// M-orthonormal eigenvectors, one column each.
+    /// M-orthonormal eigenvectors, one column each; none where a carried answer keeps them
+    /// as factors ([`warm::ritz_factored`]).
     pub vectors: Mat<f64>,
     /// Residual (Jin et al. 2022, eq. 6) of each pair; `NaN` where it was not computed (the
     /// instant carried answer, [`warm::ritz`]).
@@ -182,7 +183,8 @@ pub struct EigenSolution {
     pub guard_residuals: Vec<f64>,
     /// The rigid-body modes found (M-orthonormal, one column each; `rigid_modes` of them): a
     /// warm start carries them for objects whose parts touch only along edges or corners,
-    /// which have more than the six rigid motions of a whole.
+    /// which have more than the six rigid motions of a whole. None where a carried answer
+    /// keeps its vectors as factors ([`warm::ritz_factored`]): it is never a warm start.
     pub rigid_vectors: Mat<f64>,
 }
 

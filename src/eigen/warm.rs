@@ -38,7 +38,7 @@ mod transfer;
 
 pub use rows::RitzRows;
 pub use transfer::{align, align_voxels, transfer, Transferred};
-use transfer::{node_map, previous_columns, transfer_rows};
+use transfer::{previous_columns, transfer_rows, NodeSources};
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
@@ -89,8 +89,8 @@ pub fn solve(
     let shift = -SHIFT_RELATIVE * ops.scale;
     let mut llt = ShiftedCholesky::new(next, shift, Stop::NEVER)?;
     let columns = previous_columns(previous_solution, usize::MAX);
-    let map = node_map(previous, next, offset);
-    let carried = transfer_rows(previous, &columns, next, offset, &map, 0);
+    let sources = NodeSources::new(previous, next, offset);
+    let carried = transfer_rows(&columns, next, &sources, 0);
     let fields = extra_rigid(previous_solution).ncols() == 0;
     let start = start_block(next, &carried, m, fields);
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -209,19 +209,17 @@ fn ritz_with(
     }
     // The block by rows: the carried columns after `fields` leading ones, which take the
     // rigid fields.
-    let map = node_map(previous, next, offset);
-    let mut x_rows = transfer_rows(previous, &columns, next, offset, &map, fields).block;
+    let sources = NodeSources::new(previous, next, offset);
+    let mut x_rows = transfer_rows(&columns, next, &sources, fields).block;
     let rigid = if fields > 0 {
         rigid_fields(next)
     } else {
         Vec::new()
     };
-    for (i, row) in x_rows
-        .chunks_exact_mut(w)
-        .enumerate()
-        .filter(|_| fields > 0)
-    {
-        row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
+    if fields > 0 {
+        for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
+            row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
+        }
     }
     let edited = edited_cells(previous, next, offset);
     let patch = edited.as_ref().and_then(|e| edit_patch(next, e));
@@ -242,7 +240,7 @@ fn ritz_with(
         next,
         edited.as_ref(),
         &old,
-        &map,
+        &sources.map,
         &x_rows,
         fields,
         &rigid,
@@ -330,8 +328,7 @@ fn ritz_with(
                 [0.0; 3]
             },
             guards: previous_solution.guard_vectors.ncols().min(RITZ_GUARDS),
-            fresh: transfer::new_node_sources(previous, next, offset, &map),
-            map,
+            sources,
             correction: correction.map(|cor| (cor.dofs, cor.delta)),
         };
         return Ok((answer(Mat::zeros(n, 0), Mat::zeros(n, 0)), Some(rows)));

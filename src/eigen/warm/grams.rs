@@ -488,8 +488,9 @@ mod tests {
         let (offset, _) = super::super::align(&previous, &next);
         let old = super::super::transfer::previous_columns(&solution, 8);
         let cc = old.len();
-        let map = super::super::node_map(&previous, &next, offset);
-        let carried = super::super::transfer_rows(&previous, &old, &next, offset, &map, 6);
+        let sources = super::super::NodeSources::new(&previous, &next, offset);
+        let map = &sources.map;
+        let carried = super::super::transfer_rows(&old, &next, &sources, 6);
         let ops = Operators::new(&next);
         let n = next.dofs();
         let w = carried.columns;
@@ -518,17 +519,7 @@ mod tests {
         crate::buffer::poison_kept(3 * previous.nodes() * cc);
         let run = |edited: Option<&HashSet<[i64; 3]>>, fields_rows: &[f64]| {
             let g = &previous_side;
-            grams(
-                &ops,
-                &next,
-                edited,
-                g,
-                &map,
-                &x_rows,
-                6,
-                fields_rows,
-                &patch,
-            )
+            grams(&ops, &next, edited, g, map, &x_rows, 6, fields_rows, &patch)
         };
         let got = run(edited.as_ref(), &rigid);
         // The rigid fields read from `X` instead of given by rows: the same numbers.

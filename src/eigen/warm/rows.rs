@@ -11,7 +11,7 @@
 //! previous solution in place: a struck face's rows weighted by the strike, times `C`, are
 //! its forces, a few thousand multiply-adds and no allocation (the audio thread calls it).
 
-use super::transfer::previous_parts;
+use super::transfer::{previous_parts, NodeSources};
 use crate::eigen::lobpcg::rigid_row;
 use crate::eigen::EigenSolution;
 use crate::fem::FemModel;
@@ -29,10 +29,8 @@ pub struct RitzRows {
     pub(super) centre: [f64; 3],
     /// Guard vectors carried ([`previous_parts`]).
     pub(super) guards: usize,
-    /// Each new node's previous node (`u32::MAX` for a new one).
-    pub(super) map: Vec<u32>,
-    /// The new nodes, ascending, with the previous nodes whose mean they carry.
-    pub(super) fresh: Vec<(usize, Vec<usize>)>,
+    /// Where each node's carried values come from.
+    pub(super) sources: NodeSources,
     /// The corrections' DOFs, ascending, and their values there (one row per DOF).
     pub(super) correction: Option<(Vec<usize>, Mat<f64>)>,
 }
@@ -64,11 +62,12 @@ impl RitzRows {
                 *slot = if add { *slot + v } else { v };
             }
         };
-        match self.map[node] {
+        match self.sources.map[node] {
             u32::MAX => {
                 // A new node: the mean of its persisting neighbours, as it was carried.
-                let at = self.fresh.binary_search_by_key(&node, |(n, _)| *n);
-                let sources = at.map_or(&[][..], |i| &self.fresh[i].1[..]);
+                let fresh = &self.sources.fresh;
+                let at = fresh.binary_search_by_key(&node, |(n, _)| *n);
+                let sources = at.map_or(&[][..], |i| &fresh[i].1[..]);
                 carried.fill(0.0);
                 for &o in sources {
                     fill(carried, o, true);

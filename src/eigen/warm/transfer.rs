@@ -81,7 +81,7 @@ pub fn transfer(
     next: &FemModel,
     offset: [i64; 3],
 ) -> Transferred {
-    let map = node_map(previous, next, offset);
+    let sources = NodeSources::new(previous, next, offset);
     // A view whose columns are not contiguous (a transposed or strided one) is copied first.
     let owned;
     let vectors = if vectors.row_stride() == 1 {
@@ -93,7 +93,7 @@ pub fn transfer(
     let columns: Vec<&[f64]> = (0..vectors.ncols())
         .map(|j| column_slice(vectors, j))
         .collect();
-    transfer_rows(previous, &columns, next, offset, &map, 0)
+    transfer_rows(&columns, next, &sources, 0)
 }
 
 /// Column `j` of a matrix with unit row stride (an owned matrix's, or a column range of one:
@@ -105,16 +105,40 @@ fn column_slice(m: MatRef<'_, f64>, j: usize) -> &[f64] {
         .as_slice()
 }
 
-/// Each node of `next` that existed in `previous` (the voxel offset `offset` from [`align`]
-/// applied): its previous node number, `u32::MAX` for a new node.
-pub(super) fn node_map(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Vec<u32> {
-    let lattice = PreviousLattice::new(previous, next, offset);
-    (0..next.nodes())
-        .map(|node| {
-            let q = lattice.place(next, node);
-            lattice.node(q).map_or(u32::MAX, |o| o as u32)
-        })
-        .collect()
+/// Where each node of an edited mesh takes its carried values from.
+#[derive(Clone, Debug)]
+pub(super) struct NodeSources {
+    /// Each node of `next` that existed in `previous` (the voxel offset from [`align`]
+    /// applied): its previous node number, `u32::MAX` for a new node.
+    pub map: Vec<u32>,
+    /// Each new node, ascending, with the previous nodes at its persisting lattice neighbours
+    /// (of the 26 around it, in a fixed order), whose mean it carries.
+    pub fresh: Vec<(usize, Vec<usize>)>,
+}
+
+impl NodeSources {
+    /// The sources of `next`'s nodes in `previous`, `offset` from [`align`].
+    pub(super) fn new(previous: &FemModel, next: &FemModel, offset: [i64; 3]) -> Self {
+        let lattice = PreviousLattice::new(previous, next, offset);
+        let map: Vec<u32> = (0..next.nodes())
+            .map(|node| {
+                let q = lattice.place(next, node);
+                lattice.node(q).map_or(u32::MAX, |o| o as u32)
+            })
+            .collect();
+        let fresh = (map.iter().enumerate())
+            .filter(|(_, &o)| o == u32::MAX)
+            .map(|(node, _)| {
+                let q = lattice.place(next, node);
+                let around = (0..27i64).filter_map(|d| {
+                    let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
+                    lattice.node([0, 1, 2].map(|a| q[a] + step[a]))
+                });
+                (node, around.collect())
+            })
+            .collect();
+        NodeSources { map, fresh }
+    }
 }
 
 /// The previous model's lattice as the new one sees it.
@@ -153,18 +177,17 @@ impl<'a> PreviousLattice<'a> {
 
 /// [`transfer`] of the previous vectors `columns` (each over the previous model's DOFs) into
 /// a block by rows of `lead + columns.len()` columns whose first `lead` are left zero for the
-/// caller (the instant answer's rigid fields): one pass, read in place. `map` is
-/// [`node_map`]'s. The kept nodes go in tiles of [`TILE_NODES`], column by column: each
+/// caller (the instant answer's rigid fields): one pass, read in place, each node from its
+/// [`NodeSources`]. The kept nodes go in tiles of [`TILE_NODES`], column by column: each
 /// column is read in order and the tile's rows stay in cache (reading a node's values across
 /// all columns at once, or copying the columns by rows first, took longer).
 pub(super) fn transfer_rows(
-    previous: &FemModel,
     columns: &[&[f64]],
     next: &FemModel,
-    offset: [i64; 3],
-    map: &[u32],
+    sources: &NodeSources,
     lead: usize,
 ) -> Transferred {
+    let map = &sources.map;
     let n = next.dofs();
     let width = lead + columns.len();
     let mut block = vec![0.0; n * width];
@@ -183,8 +206,7 @@ pub(super) fn transfer_rows(
         }
     }
     // A new node: the mean of its persisting lattice neighbours.
-    let fresh = new_node_sources(previous, next, offset, map);
-    for (node, sources) in &fresh {
+    for (node, sources) in &sources.fresh {
         let rows = &mut block[3 * node * width..3 * (node + 1) * width];
         for &o in sources {
             for (c, row) in rows.chunks_exact_mut(width).enumerate() {
@@ -200,37 +222,13 @@ pub(super) fn transfer_rows(
             }
         }
     }
-    let fresh = fresh.len();
+    let fresh = sources.fresh.len();
     Transferred {
         block,
         columns: width,
         kept_nodes: map.len() - fresh,
         new_nodes: fresh,
     }
-}
-
-/// Each new node of `map` (`u32::MAX`), ascending, with the previous nodes at its persisting
-/// lattice neighbours (of the 26 around it, in a fixed order), whose mean it carries.
-pub(super) fn new_node_sources(
-    previous: &FemModel,
-    next: &FemModel,
-    offset: [i64; 3],
-    map: &[u32],
-) -> Vec<(usize, Vec<usize>)> {
-    let lattice = PreviousLattice::new(previous, next, offset);
-    (map.iter().enumerate())
-        .filter(|(_, &o)| o == u32::MAX)
-        .map(|(node, _)| {
-            let q = lattice.place(next, node);
-            let sources = (0..27i64)
-                .filter_map(|d| {
-                    let step = [d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1];
-                    lattice.node([0, 1, 2].map(|a| q[a] + step[a]))
-                })
-                .collect();
-            (node, sources)
-        })
-        .collect()
 }
 
 /// Nodes per tile of [`transfer_rows`].
