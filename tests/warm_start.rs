@@ -267,6 +267,12 @@ fn bump_stroke(grid: &VoxelGrid) -> VoxelGrid {
     out
 }
 
+/// A built-in shape as the plugin's presets place it, centred on hex27x2's blocks.
+fn on_blocks(p: Primitive) -> VoxelGrid {
+    let per = ElementKind::Hex27Blocks.voxels_per_element();
+    modalforge::shape::spec::primitive_voxels(&p, None, 1.0, per).expect("a built-in shape")
+}
+
 #[test]
 fn the_patch_modes_keep_a_carried_answer_in_tune_over_several_strokes() {
     // Four strokes at one spot of the plugin's default object (hex27x2), carried from the
@@ -276,16 +282,10 @@ fn the_patch_modes_keep_a_carried_answer_in_tune_over_several_strokes() {
     // The worst mode (the one the bump moves most: 7.8e-3 measured, 1.0e-2 without them) is
     // bounded at twice the status line's typical 1e-2.
     let kind = ElementKind::Hex27Blocks;
-    let grid = modalforge::shape::spec::primitive_voxels(
-        &Primitive::Bowl {
-            diameter: 16.0,
-            wall: 2.0,
-        },
-        None,
-        1.0,
-        kind.voxels_per_element(),
-    )
-    .expect("default bowl");
+    let grid = on_blocks(Primitive::Bowl {
+        diameter: 16.0,
+        wall: 2.0,
+    });
     let count = ModeCount::First(60);
     let solve = |g: &VoxelGrid| {
         ModeBasis::solve(
@@ -333,10 +333,7 @@ fn a_wide_patch_and_its_extra_modes_tune_the_carried_answer_on_small_objects() {
     //   norm outside the span of the ones before them), and a Ritz step that dropped them
     //   inside its Cholesky factorisation played modes 11 % low, spurious (`lobpcg::dense`).
     let kind = ElementKind::Hex27Blocks;
-    let shape = |p: Primitive| {
-        modalforge::shape::spec::primitive_voxels(&p, None, 1.0, kind.voxels_per_element())
-            .expect("a preset's shape")
-    };
+    let shape = on_blocks;
     let gong = shape(Primitive::Cylinder {
         diameter: 32.0,
         height: 1.0,
@@ -389,17 +386,11 @@ fn a_factored_carried_answer_strikes_as_the_formed_one() {
     // same orientation, at the default hit, beside the strokes and at points all round, to
     // 1e-10 of the largest (rounding of sums over ~200 factors in another order).
     let kind = ElementKind::Hex27Blocks;
-    let grid = modalforge::shape::spec::primitive_voxels(
-        &Primitive::Cup {
-            diameter: 12.0,
-            height: 12.0,
-            wall: 1.0,
-        },
-        None,
-        1.0,
-        kind.voxels_per_element(),
-    )
-    .expect("a cup");
+    let grid = on_blocks(Primitive::Cup {
+        diameter: 12.0,
+        height: 12.0,
+        wall: 1.0,
+    });
     let options = EigenOptions {
         count: ModeCount::First(30),
         ..Default::default()
