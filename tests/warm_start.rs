@@ -380,11 +380,16 @@ fn a_wide_patch_and_its_extra_modes_tune_the_carried_answer_on_small_objects() {
 fn a_factored_carried_answer_strikes_as_the_formed_one() {
     // The engine's carried answer keeps its Ritz vectors as factors over the exact answer it
     // was carried from (`ModeBasis::carried_ritz_factored`) and forms a strike's rows on
-    // demand; `carried_ritz` forms the vectors by one dense product. Two strokes on a
-    // hex27x2 cup (new nodes, the relaxed patch and its modes all in play): the same
-    // eigenvalues to the bit (the same Rayleigh-Ritz step), and the same forces, after the
-    // same orientation, at the default hit, beside the strokes and at points all round, to
-    // 1e-10 of the largest (rounding of sums over ~200 factors in another order).
+    // demand, and reads the mesh only near the edit (the rigid fields' Gram rows from the
+    // exact answer's moments, `warm/moments.rs`); `carried_ritz` forms the vectors by one
+    // dense product, and the Grams' rigid rows by whole products. Two strokes on a hex27x2
+    // cup (new nodes, the relaxed patch and its modes all in play), and one on the cup moved
+    // a block from the grid's corner (the fields' centre in the previous mesh's positions):
+    // the same eigenvalues to 1e-10 (the Grams' rigid rows differ by the rounding of a sum
+    // in another order, 1e-11 of them measured; the carried answer itself is 1e-5 to 3e-3
+    // off), and the same forces, after the same orientation, at the default hit, beside
+    // the strokes and at points all round, to 1e-8 of the largest (the same rounding over
+    // the closest pair's gap, 2 %).
     let kind = ElementKind::Hex27Blocks;
     let grid = on_blocks(Primitive::Cup {
         diameter: 12.0,
@@ -398,16 +403,39 @@ fn a_factored_carried_answer_strikes_as_the_formed_one() {
     let before = std::sync::Arc::new(
         ModeBasis::solve(&grid, kind, NU, SolverKind::Auto, &options).expect("cold solve"),
     );
-    let edited = bump_stroke(&bump_stroke(&grid));
-    let formed = ModeBasis::carried_ritz(&edited, kind, NU, 30, &before, None)
+    let per = ElementKind::Hex27Blocks.voxels_per_element();
+    let d = grid.dims();
+    let mut moved = VoxelGrid::new([d[0] + per, d[1], d[2] + per], 1.0).expect("grid");
+    for [x, y, z] in grid.solid_voxels() {
+        let fill = grid.fill_at(x as isize, y as isize, z as isize);
+        moved.set_fill(x + per, y, z + per, fill);
+    }
+    for (grid, edited) in [
+        (grid.clone(), bump_stroke(&bump_stroke(&grid))),
+        (moved.clone(), bump_stroke(&moved)),
+    ] {
+        strikes_alike(&before, &grid, &edited);
+    }
+}
+
+/// The check of [`a_factored_carried_answer_strikes_as_the_formed_one`] for one edit, `grid`
+/// the shape before it in `edited`'s frame.
+fn strikes_alike(before: &std::sync::Arc<ModeBasis>, grid: &VoxelGrid, edited: &VoxelGrid) {
+    let kind = ElementKind::Hex27Blocks;
+    let formed = ModeBasis::carried_ritz(edited, kind, NU, 30, before, None)
         .expect("an edit of the same object")
         .expect("carried answer");
-    let factored = ModeBasis::carried_ritz_factored(&edited, kind, NU, 30, &before, None)
+    let factored = ModeBasis::carried_ritz_factored(edited, kind, NU, 30, before, None)
         .expect("an edit of the same object")
         .expect("carried answer");
     assert!(factored.is_factored() && !formed.is_factored());
     assert_eq!(factored.solution.vectors.ncols(), 0);
-    assert_eq!(factored.solution.eigenvalues, formed.solution.eigenvalues);
+    assert!(
+        worst_relative(&factored.solution.eigenvalues, &formed.solution.eigenvalues) <= 1e-10,
+        "{:?} against {:?}",
+        factored.solution.eigenvalues,
+        formed.solution.eigenvalues
+    );
     let d = edited.dims().map(|v| v as f64);
     let mut hits = vec![formed.default_hit(1.0)];
     // On the voxels the strokes added (each face's centre: their new nodes), and round about.
@@ -451,7 +479,7 @@ fn a_factored_carried_answer_strikes_as_the_formed_one() {
         let scale = a.iter().fold(0.0f64, |m, f| m.max(f.abs()));
         assert!(scale > 0.0);
         for (x, y) in a.iter().zip(&b) {
-            assert!((x - y).abs() <= 1e-10 * scale, "{hit:?}: {a:?} vs {b:?}");
+            assert!((x - y).abs() <= 1e-8 * scale, "{hit:?}: {a:?} vs {b:?}");
         }
     }
 }

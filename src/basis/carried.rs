@@ -11,7 +11,7 @@
 //! thread needs ([`ModeBasis::reference_forces_into`]).
 
 use super::{BasisError, FaceWeights, ModeBasis};
-use crate::eigen::warm::RitzRows;
+use crate::eigen::warm::{RigidMoments, RitzRows};
 use crate::fem::{ElementCache, ElementKind, FemModel};
 use crate::shape::VoxelGrid;
 use std::sync::Arc;
@@ -118,6 +118,14 @@ impl ModeBasis {
     ) -> Option<Result<Self, BasisError>> {
         let from = CarriedFrom::Factored(previous);
         Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
+    }
+
+    /// The rigid fields' mass products with this answer's modes, which let a carried answer
+    /// read the mesh only near its edit ([`RigidMoments`]): one pass over the mesh on the
+    /// first call, kept for the later ones.
+    pub fn rigid_moments(&self) -> &RigidMoments {
+        self.rigid_moments
+            .get_or_init(|| RigidMoments::new(&self.model, &self.solution))
     }
 
     /// Whether the vectors are kept as factors ([`ModeBasis::carried_ritz_factored`]).

@@ -7,7 +7,9 @@
 //!   engine's [`crate::engine::CarriedRitzSolver`] after every brush stroke): the carried modes
 //!   relaxed near the edit (`warm/correction.rs`: only that small patch is factored, never
 //!   the object) and re-balanced by one Rayleigh-Ritz step, whose Gram matrices are the previous
-//!   solve's updated near the edit (`warm/grams.rs`);
+//!   solve's updated near the edit (`warm/grams.rs`). The engine's, [`ritz_factored`], reads
+//!   nothing of the mesh away from the edit: its vectors stay factors (`warm/rows.rs`) and
+//!   the rigid fields' Gram rows come from the previous answer's moments (`warm/moments.rs`);
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
@@ -33,16 +35,18 @@
 
 mod correction;
 mod grams;
+mod moments;
 mod rows;
 mod transfer;
 
+pub use moments::RigidMoments;
 pub use rows::RitzRows;
 pub use transfer::{align, align_voxels, transfer, Transferred};
-use transfer::{previous_columns, transfer_rows, NodeSources};
+use transfer::{previous_columns, transfer_rows, NodeSources, Source};
 
 use super::factor::ShiftedCholesky;
 use super::lanczos::{self, SHIFT_RELATIVE};
-use super::lobpcg::{self, rigid_centre, rigid_fields};
+use super::lobpcg::{self, rigid_centre, rigid_fields, rigid_row};
 use super::stop::Stop;
 use super::{
     random_block, select, solution, EigenError, EigenOptions, EigenSolution, ModeCount, Operators,
@@ -153,14 +157,15 @@ pub fn ritz(
     offset: [i64; 3],
     count: usize,
 ) -> Result<EigenSolution, EigenError> {
-    ritz_with(next, previous, previous_solution, offset, count, None).map(|(s, _)| s)
+    ritz_with(next, previous, previous_solution, offset, count, None, None).map(|(s, _)| s)
 }
 
 /// [`ritz`] with the Ritz vectors left in factored form where they are at most `max_width`
 /// factors wide ([`RitzRows`]: any row of them on demand): the solution's `vectors` and
 /// `rigid_vectors` then have no columns. Wider (a large correction), they are formed as by
 /// [`ritz`] and the rows are `None`. The engine's carried answer, which a strike reads a few
-/// rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]).
+/// rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]). Given the previous answer's
+/// [`RigidMoments`], a local edit reads the carried block only near the edit.
 pub fn ritz_factored(
     next: &FemModel,
     previous: &FemModel,
@@ -168,6 +173,7 @@ pub fn ritz_factored(
     offset: [i64; 3],
     count: usize,
     max_width: usize,
+    moments: Option<&RigidMoments>,
 ) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     ritz_with(
         next,
@@ -176,6 +182,7 @@ pub fn ritz_factored(
         offset,
         count,
         Some(max_width),
+        moments,
     )
 }
 
@@ -187,6 +194,7 @@ fn ritz_with(
     offset: [i64; 3],
     count: usize,
     factored: Option<usize>,
+    moments: Option<&RigidMoments>,
 ) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     let t0 = Instant::now();
     // No norms: this answer reports no residuals.
@@ -207,22 +215,11 @@ fn ritz_with(
             wanted: count,
         });
     }
-    // The block by rows: the carried columns after `fields` leading ones, which take the
-    // rigid fields.
     let sources = NodeSources::new(previous, next, offset);
-    let mut x_rows = transfer_rows(&columns, next, &sources, fields).block;
-    let rigid = if fields > 0 {
-        rigid_fields(next)
-    } else {
-        Vec::new()
-    };
-    if fields > 0 {
-        for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
-            row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
-        }
-    }
     let edited = edited_cells(previous, next, offset);
     let patch = edited.as_ref().and_then(|e| edit_patch(next, e));
+    let rows_at = patch.as_ref().map_or(&[][..], |p| &p.nodes[..]);
+    let touched = edited.as_ref().and_then(|e| grams::touched_nodes(next, e));
     let extra = extra_rigid(previous_solution).ncols();
     let lambda = grams::relations(previous_solution, extra, cc);
     let old = grams::Previous {
@@ -230,22 +227,84 @@ fn ritz_with(
         columns: &columns,
         lambda: &lambda,
     };
+    let centre = rigid_centre(next);
+    // The factored answer reads no row of the carried block away from the edit where the
+    // previous answer's rigid moments stand for the fields' whole products
+    // (`warm/moments.rs`): every carried column related, the edit local.
+    let moved = moments
+        .filter(|m| factored.is_some() && fields == 6 && m.fits(previous_solution))
+        .filter(|_| lambda.iter().all(Option::is_some))
+        .map(|m| {
+            // The same centre in the previous mesh's positions (voxel units).
+            let shift = offset.map(|d| (d * next.kind.voxels_per_element() as i64) as f64);
+            m.about([0, 1, 2].map(|a| centre[a] + shift[a]))
+        });
+    let local = moved.as_ref().zip(touched.as_ref()).and_then(|(mv, t)| {
+        let read = grams::rows_read(next, rows_at, t);
+        let mut slot = vec![u32::MAX; next.nodes()];
+        (read.iter().enumerate()).for_each(|(i, &v)| slot[v] = i as u32);
+        let rows = block_rows_on(next, &columns, &sources, fields, centre, &read);
+        let x = grams::BlockRows {
+            rows: &rows,
+            w,
+            slot: Some(&slot),
+        };
+        let map = &sources.map;
+        grams::grams(
+            &ops,
+            next,
+            Some(t),
+            &old,
+            map,
+            x,
+            fields,
+            &[],
+            rows_at,
+            Some(mv),
+        )
+    });
+    // Else the block on every node: the carried columns after `fields` leading ones, which
+    // take the rigid fields.
+    let whole_block = || {
+        let mut x_rows = transfer_rows(&columns, next, &sources, fields).block;
+        let rigid = if fields > 0 {
+            rigid_fields(next)
+        } else {
+            Vec::new()
+        };
+        if fields > 0 {
+            for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
+                row[..fields].copy_from_slice(&rigid[i * 6..i * 6 + fields]);
+            }
+        }
+        (x_rows, rigid)
+    };
+    let mut whole = None;
+    let grams = match local {
+        Some(g) => g,
+        None => {
+            let (x_rows, rigid) = whole.insert(whole_block());
+            grams::grams(
+                &ops,
+                next,
+                touched.as_deref(),
+                &old,
+                &sources.map,
+                grams::BlockRows::whole(x_rows, w),
+                fields,
+                rigid,
+                rows_at,
+                None,
+            )
+            .expect("a whole block")
+        }
+    };
     let grams::Grams {
         k: mut gk,
         m: mut gm,
         mut k_rows,
         mut m_rows,
-    } = grams::grams(
-        &ops,
-        next,
-        edited.as_ref(),
-        &old,
-        &sources.map,
-        &x_rows,
-        fields,
-        &rigid,
-        patch.as_ref().map_or(&[], |p| &p.nodes),
-    );
+    } = grams;
     let correction = patch.as_ref().and_then(|p| {
         let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
         let relax = |nodes: &[usize], k: &Mat<f64>, m: &Mat<f64>| {
@@ -322,11 +381,7 @@ fn ritz_with(
         let rows = RitzRows {
             coefficients: Mat::from_fn(s, kept.len(), |i, j| c[(i, kept[j])]),
             fields,
-            centre: if fields > 0 {
-                rigid_centre(next)
-            } else {
-                [0.0; 3]
-            },
+            centre: if fields > 0 { centre } else { [0.0; 3] },
             guards: previous_solution.guard_vectors.ncols().min(RITZ_GUARDS),
             sources,
             correction: correction.map(|cor| (cor.dofs, cor.delta)),
@@ -339,7 +394,8 @@ fn ritz_with(
         .copied()
         .collect();
     let c_x = Mat::from_fn(w, cols.len(), |i, j| c[(i, cols[j])]);
-    let x = MatRef::from_row_major_slice(&x_rows, n, w);
+    let (x_rows, _) = whole.get_or_insert_with(whole_block);
+    let x = MatRef::from_row_major_slice(x_rows, n, w);
     let mut v = x * &c_x;
     if let Some(cor) = &correction {
         let c_d = Mat::from_fn(cor.delta.ncols(), cols.len(), |i, j| c[(w + i, cols[j])]);
@@ -498,6 +554,48 @@ fn extra_rigid(previous: &EigenSolution) -> MatRef<'_, f64> {
     } else {
         r.get(.., 0..0)
     }
+}
+
+/// The carried block's rows on the nodes `read` (ascending) only, in that order: the rigid
+/// fields about `centre` in the first `fields` columns, then each carried column's value as
+/// [`transfer_rows`] carries it (a persisting node's own, a new node's the mean of its
+/// persisting neighbours').
+fn block_rows_on(
+    next: &FemModel,
+    columns: &[&[f64]],
+    sources: &NodeSources,
+    fields: usize,
+    centre: [f64; 3],
+    read: &[usize],
+) -> Vec<f64> {
+    let w = fields + columns.len();
+    let mut rows = vec![0.0; 3 * read.len() * w];
+    for (&v, node_rows) in read.iter().zip(rows.chunks_exact_mut(3 * w)) {
+        let p = next.node_position(v);
+        for (c, row) in node_rows.chunks_exact_mut(w).enumerate() {
+            row[..fields].copy_from_slice(&rigid_row(p, centre, c)[..fields]);
+            let carried = &mut row[fields..];
+            match sources.source(v) {
+                Source::Kept(o) => {
+                    for (r, column) in carried.iter_mut().zip(columns) {
+                        *r = column[3 * o + c];
+                    }
+                }
+                Source::Fresh(from) => {
+                    for &o in from {
+                        for (r, column) in carried.iter_mut().zip(columns) {
+                            *r += column[3 * o + c];
+                        }
+                    }
+                    if !from.is_empty() {
+                        let count = from.len() as f64;
+                        carried.iter_mut().for_each(|r| *r /= count);
+                    }
+                }
+            }
+        }
+    }
+    rows
 }
 
 /// `[rigid fields (if `fields`) | carried modes and guards | random guards]`, row-major

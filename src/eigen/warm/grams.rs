@@ -22,14 +22,19 @@
 //! sums are over a few hundred nodes. The columns that are no converged eigenvectors (the rigid
 //! fields, whose images `K r = 0` are exact, the carried guards and extra rigid modes, the modes
 //! of an approximate previous answer: a residual above [`RELATION_MAX_RESIDUAL`]) are multiplied
-//! out over the whole mesh, and their Gram rows with every column formed from those products.
+//! out over the whole mesh, and their Gram rows with every column formed from those products;
+//! except where the rigid fields are the only such columns and the previous answer's
+//! [`Moved`] moments are given (the engine's factored answer, `warm/moments.rs`): their rows
+//! are then updated near the edit as the carried modes' are, and `X` is read only there.
 //!
 //! The error this leaves is the previous solve's residual: a relative error of about 1e-6 in
 //! the Gram matrices, three orders below what the carried answer is accurate to (1e-5 to 3e-3).
 
 use super::super::{EigenSolution, Operators, Which};
+use super::moments::Moved;
 use super::nodes_near;
 use crate::buffer;
+use crate::eigen::lobpcg::rigid_row;
 use crate::fem::sparse::BlockPattern;
 use crate::fem::FemModel;
 use crate::fma::mul_add;
@@ -83,35 +88,81 @@ pub(super) fn relations(previous: &EigenSolution, extra: usize, cc: usize) -> Ve
         .collect()
 }
 
-/// The Gram matrices of `X` (`n x w` by rows, its first `fields` columns the rigid fields) on
-/// `next`, and its images on the rows of `rows_at` (the relaxation's patch). `node_map` gives
-/// each new node's previous node (`u32::MAX` for a new one); `fields_rows` is the rigid fields
-/// by rows (`n x 6`, [`crate::eigen::lobpcg::rigid_fields`]) where `fields` is 6, the first
-/// columns of `X` (else empty). By the previous solve's Grams where the edit is local (see the
-/// module docs), else by whole products. The rows of `K X` and `M X` on `rows_at` are
-/// multiplied out either way.
+/// The carried block `X` by rows (`w` wide, its first `fields` columns the rigid fields): on
+/// every node of the new mesh, or on some of them only ([`rows_read`]), node `v`'s rows at
+/// place `slot[v]`.
+#[derive(Clone, Copy)]
+pub(super) struct BlockRows<'a> {
+    /// The rows, three DOF rows of `w` values per node present.
+    pub rows: &'a [f64],
+    /// Columns.
+    pub w: usize,
+    /// Each node's place in `rows` (`u32::MAX` where absent); `None` where every node is
+    /// present, in order.
+    pub slot: Option<&'a [u32]>,
+}
+
+impl<'a> BlockRows<'a> {
+    /// A block on every node.
+    pub(super) fn whole(rows: &'a [f64], w: usize) -> Self {
+        BlockRows {
+            rows,
+            w,
+            slot: None,
+        }
+    }
+
+    /// Node `v`'s three DOF rows, side by side (a node that is not present panics).
+    fn node(&self, v: usize) -> &'a [f64] {
+        let at = self.slot.map_or(v, |s| s[v] as usize);
+        &self.rows[3 * at * self.w..3 * (at + 1) * self.w]
+    }
+}
+
+/// The nodes whose rows of `X` [`grams`] reads where the edit is local and the rigid fields'
+/// products come from [`Moved`] moments: the patch's (`rows_at`), the `touched` ones, and
+/// their neighbours in `next`'s pattern. Ascending.
+pub(super) fn rows_read(next: &FemModel, rows_at: &[usize], touched: &[usize]) -> Vec<usize> {
+    let p = &next.pattern;
+    let mut read = vec![false; next.nodes()];
+    for &v in rows_at.iter().chain(touched) {
+        for &c in &p.col[p.row_ptr[v]..p.row_ptr[v + 1]] {
+            read[c as usize] = true;
+        }
+    }
+    (0..next.nodes()).filter(|&v| read[v]).collect()
+}
+
+/// The Gram matrices of `X` ([`BlockRows`], its first `fields` columns the rigid fields) on
+/// `next`, and its images on the rows of `rows_at` (the relaxation's patch). `touched` are
+/// [`touched_nodes`] of the edit (`None`: not a local edit); `node_map` gives each new node's
+/// previous node (`u32::MAX` for a new one); `fields_rows` is the rigid fields by rows (`n x
+/// 6`, [`crate::eigen::lobpcg::rigid_fields`]) where `fields` is 6 and `X` is whole (else
+/// empty). By the previous solve's Grams where the edit is local (see the module docs), else
+/// by whole products. The rigid fields' rows come from `moments` (the previous answer's,
+/// about the fields' centre) where those are given, every carried column is related and the
+/// edit is local; else by whole products, which need `X` whole: `None` if it is not. The
+/// rows of `K X` and `M X` on `rows_at` are multiplied out either way.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn grams(
     ops: &Operators,
     next: &FemModel,
-    edited: Option<&HashSet<[i64; 3]>>,
+    touched: Option<&[usize]>,
     previous: &Previous,
     node_map: &[u32],
-    x_rows: &[f64],
+    x: BlockRows,
     fields: usize,
     fields_rows: &[f64],
     rows_at: &[usize],
-) -> Grams {
-    let (n, w) = (ops.dofs(), x_rows.len() / ops.dofs().max(1));
-    let x = MatRef::from_row_major_slice(x_rows, n, w);
+    moments: Option<&Moved>,
+) -> Option<Grams> {
+    let (n, w) = (ops.dofs(), x.w);
     let new_blocks = Blocks::of(ops.pattern, ops.k, ops.m);
     let lambda: Vec<Option<f64>> = (0..w)
         .map(|j| j.checked_sub(fields).and_then(|c| previous.lambda[c]))
         .collect();
     let related: Vec<usize> = (0..w).filter(|&j| lambda[j].is_some()).collect();
-    let touched = edited
-        .filter(|_| !related.is_empty())
-        .and_then(|e| touched_nodes(next, e));
+    let touched = touched.filter(|_| !related.is_empty());
     // The rows multiplied out on the new mesh: the patch's, then the touched nodes off it (for
     // hex27x2 the two are the same nodes).
     let mut near: Vec<usize> = rows_at.to_vec();
@@ -120,14 +171,14 @@ pub(super) fn grams(
         .iter()
         .enumerate()
         .for_each(|(i, &v)| place[v] = i as u32);
-    for &v in touched.iter().flatten() {
+    for &v in touched.iter().copied().flatten() {
         if place[v] == u32::MAX {
             place[v] = near.len() as u32;
             near.push(v);
         }
     }
-    let k_near = new_blocks.product(Which::K, &near, x_rows, w);
-    let m_near = new_blocks.product(Which::M, &near, x_rows, w);
+    let k_near = new_blocks.product(Which::K, &near, x);
+    let m_near = new_blocks.product(Which::M, &near, x);
     let patch_rows = |a: &Mat<f64>| a.get(..3 * rows_at.len(), ..).to_owned();
     let (k_rows, m_rows) = (patch_rows(&k_near), patch_rows(&m_near));
     // The previous nodes that no untouched new node carries. Every untouched node persists (a
@@ -147,58 +198,79 @@ pub(super) fn grams(
                 .collect::<Vec<usize>>(),
         )
     });
+    // `X` whole, for the whole products.
+    let whole = || {
+        x.slot
+            .is_none()
+            .then(|| MatRef::from_row_major_slice(x.rows, n, w))
+    };
     let (Some(touched), Some(left)) = (touched, left) else {
         // Whole products: the edit is not local, or nothing was converged.
-        let mx = ops.rows_product(Which::M, x_rows, w);
-        let kx = ops.rows_product(Which::K, x_rows, w);
-        return Grams {
-            k: gram(x, MatRef::from_row_major_slice(&kx, n, w)),
-            m: gram(x, MatRef::from_row_major_slice(&mx, n, w)),
+        let xw = whole()?;
+        let mx = ops.rows_product(Which::M, x.rows, w);
+        let kx = ops.rows_product(Which::K, x.rows, w);
+        return Some(Grams {
+            k: gram(xw, MatRef::from_row_major_slice(&kx, n, w)),
+            m: gram(xw, MatRef::from_row_major_slice(&mx, n, w)),
             k_rows,
             m_rows,
-        };
+        });
     };
     // The columns multiplied out, and their Gram columns against every column.
     let others: Vec<usize> = (0..w).filter(|&j| lambda[j].is_none()).collect();
     let no = others.len();
-    // Where only the rigid fields are (the previous modes and guards all converged), they are
-    // `fields_rows` as they are: no pass over `X` (1.3 ms of the ceramic cup's answer).
-    let xo: std::borrow::Cow<[f64]> =
-        if fields == 6 && others.len() == fields && fields_rows.len() == 6 * n {
-            fields_rows.into()
-        } else {
-            (0..n * no)
-                .map(|k| x_rows[k / no * w + others[k % no]])
-                .collect::<Vec<f64>>()
-                .into()
-        };
-    let mo = ops.rows_product(Which::M, &xo, no);
+    // The rigid fields' rows from the previous answer's moments (`warm/moments.rs`): only
+    // where they are all that is multiplied out.
+    let moved = moments.filter(|_| fields == 6 && no == fields);
     // The rigid fields' images are zero (they lead `others`): only the rest are multiplied
     // (none, where every carried mode and guard converged), their Gram columns beside zeros.
     let rigid = others.iter().take_while(|&&j| j < fields).count();
     let mut k_cross = Mat::<f64>::zeros(w, no);
-    if rigid < no {
-        let nk = no - rigid;
-        let xk: Vec<f64> = (0..n * nk)
-            .map(|k| xo[k / nk * no + rigid + k % nk])
-            .collect();
-        let kk = ops.rows_product(Which::K, &xk, nk);
-        k_cross
-            .get_mut(.., rigid..)
-            .copy_from(cross_rows(x_rows, w, &kk, nk));
-    }
-    let m_cross = cross_rows(x_rows, w, &mo, no);
+    let m_cross = if moved.is_some() {
+        None
+    } else {
+        let x_rows = x.slot.is_none().then_some(x.rows)?;
+        // Where only the rigid fields are (the previous modes and guards all converged), they
+        // are `fields_rows` as they are: no pass over `X` (1.3 ms of the ceramic cup's
+        // answer).
+        let xo: std::borrow::Cow<[f64]> =
+            if fields == 6 && others.len() == fields && fields_rows.len() == 6 * n {
+                fields_rows.into()
+            } else {
+                (0..n * no)
+                    .map(|k| x_rows[k / no * w + others[k % no]])
+                    .collect::<Vec<f64>>()
+                    .into()
+            };
+        let mo = ops.rows_product(Which::M, &xo, no);
+        if rigid < no {
+            let nk = no - rigid;
+            let xk: Vec<f64> = (0..n * nk)
+                .map(|k| xo[k / nk * no + rigid + k % nk])
+                .collect();
+            let kk = ops.rows_product(Which::K, &xk, nk);
+            k_cross
+                .get_mut(.., rigid..)
+                .copy_from(cross_rows(x_rows, w, &kk, nk));
+        }
+        Some(cross_rows(x_rows, w, &mo, no))
+    };
     // The related block: the previous Grams, plus the new rows near the edit, less the previous
     // rows on `left`.
     let touched_at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
-    let new_side = |y: &Mat<f64>| local_gram(x_rows, w, &touched, y, &touched_at);
+    let new_side = |y: &Mat<f64>| local_gram(x, touched, y, &touched_at);
     let pm = previous.model;
     let old_blocks = Blocks::of(&pm.pattern, &pm.k, &pm.m);
     let cc = w - fields;
+    // The previous rows lead with the rigid fields where their moments are updated too (about
+    // the same centre, in the previous mesh's positions).
+    let lead = if moved.is_some() { fields } else { 0 };
+    let ow = lead + cc;
+    let old_at = |j: usize| j - fields + lead;
     // The previous columns by rows on `left` and its neighbours, the only rows the sums read:
     // a kept buffer, never cleared (a zeroed one was a pass over all 16 MB of the ceramic
     // cup's wherever the allocator handed back used memory).
-    let len = 3 * pm.nodes() * cc;
+    let len = 3 * pm.nodes() * ow;
     let mut old_rows = buffer::take_unfilled(len).unwrap_or_else(|_| vec![0.0; len]);
     let mut read = vec![false; pm.nodes()];
     for &o in &left {
@@ -206,10 +278,12 @@ pub(super) fn grams(
             let v = pm.pattern.col[b] as usize;
             if !std::mem::replace(&mut read[v], true) {
                 for d in 3 * v..3 * v + 3 {
-                    for (out, column) in old_rows[d * cc..(d + 1) * cc]
-                        .iter_mut()
-                        .zip(previous.columns)
-                    {
+                    let row = &mut old_rows[d * ow..(d + 1) * ow];
+                    if let Some(mv) = moved {
+                        let r = rigid_row(pm.node_position(v), mv.centre, d % 3);
+                        row[..lead].copy_from_slice(&r[..lead]);
+                    }
+                    for (out, column) in row[lead..].iter_mut().zip(previous.columns) {
                         *out = column[d];
                     }
                 }
@@ -217,14 +291,9 @@ pub(super) fn grams(
         }
     }
     let old_side = |which| {
-        let y = old_blocks.product(which, &left, &old_rows, cc);
-        local_gram(
-            &old_rows,
-            cc,
-            &left,
-            &y,
-            &(0..left.len()).collect::<Vec<_>>(),
-        )
+        let old = BlockRows::whole(&old_rows, ow);
+        let y = old_blocks.product(which, &left, old);
+        local_gram(old, &left, &y, &(0..left.len()).collect::<Vec<_>>())
     };
     let (k_new, m_new, k_old, m_old) = (
         new_side(&k_near),
@@ -233,6 +302,22 @@ pub(super) fn grams(
         old_side(Which::M),
     );
     buffer::recycle(old_rows);
+    // Both sums are over rows, so each alone is not symmetric; their difference is (the whole
+    // Grams' difference), to rounding: its mean is taken.
+    let change = |new: &Mat<f64>, old: &Mat<f64>, i: usize, j: usize| {
+        let local = |a: &Mat<f64>, p: usize, q: usize| a[(p, q)] + a[(q, p)];
+        0.5 * (local(new, i, j) - local(old, old_at(i), old_at(j)))
+    };
+    let m_cross = m_cross.unwrap_or_else(|| {
+        let mv = moved.expect("moments, where not multiplied out");
+        Mat::from_fn(w, fields, |i, c| {
+            let before = match i.checked_sub(fields) {
+                None => mv.fields[(i, c)],
+                Some(j) => mv.carried[(c, j)],
+            };
+            before + change(&m_new, &m_old, i, c)
+        })
+    });
     let assemble = |which: Which, new: &Mat<f64>, old: &Mat<f64>, cross: &Mat<f64>| {
         let mut g = Mat::<f64>::zeros(w, w);
         for (c, &j) in others.iter().enumerate() {
@@ -248,21 +333,17 @@ pub(super) fn grams(
                     (Which::M, true) => 1.0,
                     (Which::K, true) => lambda[i].expect("related"),
                 };
-                // Both sums are over rows, so each alone is not symmetric; their difference
-                // is (the whole Grams' difference), to rounding: its mean is taken.
-                let local = |a: &Mat<f64>, p: usize, q: usize| a[(p, q)] + a[(q, p)];
-                let change = 0.5 * (local(new, i, j) - local(old, i - fields, j - fields));
-                g[(i, j)] = before + change;
+                g[(i, j)] = before + change(new, old, i, j);
             }
         }
         g
     };
-    Grams {
+    Some(Grams {
         k: assemble(Which::K, &k_new, &k_old, &k_cross),
         m: assemble(Which::M, &m_new, &m_old, &m_cross),
         k_rows,
         m_rows,
-    }
+    })
 }
 
 /// `X^T Y` (`w x no`) for `X` (`n x w`) and `Y` (`n x no`), both by rows: one pass down the
@@ -322,24 +403,24 @@ impl<'a> Blocks<'a> {
     }
 
     /// `A X` on the rows of `nodes` (three DOF rows per node, in that order), `X` given by
-    /// rows (`w` wide).
-    fn product(&self, which: Which, nodes: &[usize], x_rows: &[f64], w: usize) -> Mat<f64> {
+    /// rows on (at least) their neighbours.
+    fn product(&self, which: Which, nodes: &[usize], x: BlockRows) -> Mat<f64> {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the CPU supports AVX2 and FMA (checked just above), the only requirement
             // of the `target_feature` function.
-            return unsafe { self.product_avx2(which, nodes, x_rows, w) };
+            return unsafe { self.product_avx2(which, nodes, x) };
         }
-        self.product_with::<false>(which, nodes, x_rows, w)
+        self.product_with::<false>(which, nodes, x)
     }
 
     /// [`Self::product`] compiled for AVX2 + FMA (the portable build's two-wide multiplies
     /// and adds took about three times as long: the largest part of this answer's Grams).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn product_avx2(&self, which: Which, nodes: &[usize], x: &[f64], w: usize) -> Mat<f64> {
-        self.product_with::<true>(which, nodes, x, w)
+    unsafe fn product_avx2(&self, which: Which, nodes: &[usize], x: BlockRows) -> Mat<f64> {
+        self.product_with::<true>(which, nodes, x)
     }
 
     #[inline(always)]
@@ -347,17 +428,15 @@ impl<'a> Blocks<'a> {
         &self,
         which: Which,
         nodes: &[usize],
-        x_rows: &[f64],
-        w: usize,
+        x: BlockRows,
     ) -> Mat<f64> {
-        let pattern = self.pattern;
+        let (pattern, w) = (self.pattern, x.w);
         let mut out = Mat::<f64>::zeros(3 * nodes.len(), w);
         let mut acc = vec![0.0; 3 * w];
         for (i, &node) in nodes.iter().enumerate() {
             acc.fill(0.0);
             for b in pattern.row_ptr[node]..pattern.row_ptr[node + 1] {
-                let col = 3 * pattern.col[b] as usize;
-                let s = &x_rows[col * w..(col + 3) * w];
+                let s = x.node(pattern.col[b] as usize);
                 match which {
                     Which::K => add_block_product::<FMA>(&self.k[b], s, &mut acc),
                     Which::M => {
@@ -400,9 +479,10 @@ fn add_block_product<const FMA: bool>(block: &[f64; 9], s: &[f64], out: &mut [f6
 
 /// `sum_i x_i^T y_i` over the DOF rows of `nodes`, whose rows of `y` ([`Blocks::product`]'s
 /// layout) are at the node places `at`.
-fn local_gram(x_rows: &[f64], w: usize, nodes: &[usize], y: &Mat<f64>, at: &[usize]) -> Mat<f64> {
+fn local_gram(x: BlockRows, nodes: &[usize], y: &Mat<f64>, at: &[usize]) -> Mat<f64> {
+    let w = x.w;
     let xs = Mat::<f64>::from_fn(3 * nodes.len(), w, |i, j| {
-        x_rows[(3 * nodes[i / 3] + i % 3) * w + j]
+        x.node(nodes[i / 3])[(i % 3) * w + j]
     });
     let ys = Mat::<f64>::from_fn(3 * nodes.len(), y.ncols(), |i, j| {
         y[(3 * at[i / 3] + i % 3, j)]
@@ -438,15 +518,17 @@ pub(super) fn gram(x: MatRef<'_, f64>, y: MatRef<'_, f64>) -> Mat<f64> {
 /// The nodes of `next` whose rows of `K` and `M` may differ from the previous shape's: those
 /// of every element within one cell of an `edited` cell. `None` where the edit is too large to
 /// be worth it (more than a quarter of the nodes).
-fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
+pub(super) fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Vec<usize>> {
     let nodes = nodes_near(next, edited, 1);
     (4 * nodes.len() <= next.nodes()).then_some(nodes)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::moments::RigidMoments;
+    use super::super::transfer::previous_columns;
     use super::*;
-    use crate::eigen::lobpcg::rigid_fields;
+    use crate::eigen::lobpcg::{rigid_centre, rigid_fields};
     use crate::eigen::{self, EigenOptions, ModeCount, SolverKind};
     use crate::fem::ElementKind;
     use crate::shape::{ops as shape_ops, primitives::Primitive, SubFill, VoxelFill, VoxelGrid};
@@ -486,7 +568,7 @@ mod tests {
         edit(&mut after);
         let next = FemModel::assemble(&after, kind, 0.24).unwrap();
         let (offset, _) = super::super::align(&previous, &next);
-        let old = super::super::transfer::previous_columns(&solution, 8);
+        let old = previous_columns(&solution, 8);
         let cc = old.len();
         let sources = super::super::NodeSources::new(&previous, &next, offset);
         let map = &sources.map;
@@ -517,13 +599,26 @@ mod tests {
         // Kept buffers full of NaNs for the previous rows (the Grams take one and write only
         // the rows they read): a row read but never written would show.
         crate::buffer::poison_kept(3 * previous.nodes() * cc);
-        let run = |edited: Option<&HashSet<[i64; 3]>>, fields_rows: &[f64]| {
-            let g = &previous_side;
-            grams(&ops, &next, edited, g, map, &x_rows, 6, fields_rows, &patch)
+        let touched = edited.as_ref().and_then(|e| touched_nodes(&next, e));
+        let run = |touched: Option<&[usize]>, fields_rows: &[f64]| {
+            let (g, x) = (&previous_side, BlockRows::whole(&x_rows, w));
+            grams(
+                &ops,
+                &next,
+                touched,
+                g,
+                map,
+                x,
+                6,
+                fields_rows,
+                &patch,
+                None,
+            )
+            .unwrap()
         };
-        let got = run(edited.as_ref(), &rigid);
+        let got = run(touched.as_deref(), &rigid);
         // The rigid fields read from `X` instead of given by rows: the same numbers.
-        let extracted = run(edited.as_ref(), &[]);
+        let extracted = run(touched.as_deref(), &[]);
         assert!(got.k == extracted.k && got.m == extracted.m);
         // Without the edit's cells (a stroke too large to tell apart), whole products.
         let whole = run(None, &rigid);
@@ -531,51 +626,117 @@ mod tests {
         let (kx, mx) = (ops.apply_block(Which::K, x), ops.apply_block(Which::M, x));
         let (want_k, want_m) = (x.transpose() * &kx, x.transpose() * &mx);
         let norms: Vec<f64> = (0..w).map(|j| x.col(j).norm_l2()).collect();
+        // The Grams and patch rows of `got` against the products, on the first `wl` columns.
+        let compare = |got: &Grams, wl: usize, patch: &[usize]| {
+            for i in 0..wl {
+                for j in 0..wl {
+                    let scale = norms[i] * norms[j];
+                    // A related column's own residual; an unrelated one's products are exact.
+                    let residual = |c: usize| match c.checked_sub(6) {
+                        Some(m) if lambda[m].is_some() => own_residuals[m],
+                        _ => 0.0,
+                    };
+                    let res = residual(i).max(residual(j));
+                    let lam = guard_lambdas.iter().cloned().fold(0.0, f64::max);
+                    let bound_k = (10.0 * res + 1e-11) * (ops.k_norm + lam * ops.m_norm) * scale;
+                    let bound_m = 1e-11 * ops.m_norm * scale;
+                    let (dk, dm) = (
+                        (got.k[(i, j)] - want_k[(i, j)]).abs(),
+                        (got.m[(i, j)] - want_m[(i, j)]).abs(),
+                    );
+                    assert!(
+                        dk <= bound_k,
+                        "{kind:?} K ({i}, {j}): {dk:e} against {bound_k:e}"
+                    );
+                    assert!(
+                        dm <= bound_m,
+                        "{kind:?} M ({i}, {j}): {dm:e} against {bound_m:e}"
+                    );
+                }
+            }
+            for (r, &node) in patch.iter().enumerate() {
+                for c in 0..3 {
+                    for j in 0..wl {
+                        let d = 3 * node + c;
+                        let scale = norms[j];
+                        assert!(
+                            (got.k_rows[(3 * r + c, j)] - kx[(d, j)]).abs()
+                                <= 1e-11 * ops.k_norm * scale
+                        );
+                        assert!(
+                            (got.m_rows[(3 * r + c, j)] - mx[(d, j)]).abs()
+                                <= 1e-11 * ops.m_norm * scale
+                        );
+                    }
+                }
+            }
+        };
+        compare(&got, w, &patch);
         for i in 0..w {
             for j in 0..w {
-                let scale = norms[i] * norms[j];
-                // A related column's own residual; an unrelated one's products are exact.
-                let residual = |c: usize| match c.checked_sub(6) {
-                    Some(m) if lambda[m].is_some() => own_residuals[m],
-                    _ => 0.0,
-                };
-                let res = residual(i).max(residual(j));
-                let lam = guard_lambdas.iter().cloned().fold(0.0, f64::max);
-                let bound_k = (10.0 * res + 1e-11) * (ops.k_norm + lam * ops.m_norm) * scale;
-                let bound_m = 1e-11 * ops.m_norm * scale;
-                let (dk, dm) = (
-                    (got.k[(i, j)] - want_k[(i, j)]).abs(),
-                    (got.m[(i, j)] - want_m[(i, j)]).abs(),
-                );
-                assert!(
-                    dk <= bound_k,
-                    "{kind:?} K ({i}, {j}): {dk:e} against {bound_k:e}"
-                );
-                assert!(
-                    dm <= bound_m,
-                    "{kind:?} M ({i}, {j}): {dm:e} against {bound_m:e}"
-                );
-                let rounding = 1e-11 * scale;
+                let rounding = 1e-11 * norms[i] * norms[j];
                 assert!((whole.k[(i, j)] - want_k[(i, j)]).abs() <= rounding * ops.k_norm);
                 assert!((whole.m[(i, j)] - want_m[(i, j)]).abs() <= rounding * ops.m_norm);
             }
         }
-        for (r, &node) in patch.iter().enumerate() {
-            for c in 0..3 {
-                for j in 0..w {
-                    let d = 3 * node + c;
-                    let scale = norms[j];
-                    assert!(
-                        (got.k_rows[(3 * r + c, j)] - kx[(d, j)]).abs()
-                            <= 1e-11 * ops.k_norm * scale
-                    );
-                    assert!(
-                        (got.m_rows[(3 * r + c, j)] - mx[(d, j)]).abs()
-                            <= 1e-11 * ops.m_norm * scale
-                    );
-                }
+        // The factored answer's way (`warm/moments.rs`): the modes alone carried, every one
+        // related, so the rigid fields are all that would be multiplied out; their rows come
+        // from the previous answer's moments, and the block is given only on the rows read
+        // near the edit (the same values as the whole block's, to the bit). The same bounds
+        // on its columns; without the moments such a block gives no Grams.
+        let modes = previous_columns(&solution, 0);
+        let wl = 6 + modes.len();
+        let lambda_modes = relations(&solution, 0, modes.len());
+        assert!(lambda_modes.iter().all(Option::is_some));
+        let touched = touched.expect("a local edit");
+        let at = &touched[..touched.len() / 2];
+        let read = rows_read(&next, at, &touched);
+        // (A small sphere: the edit's neighbourhood is much of it, but not all.)
+        assert!(
+            read.len() < next.nodes(),
+            "{} of {}",
+            read.len(),
+            next.nodes()
+        );
+        let mut slot = vec![u32::MAX; next.nodes()];
+        (read.iter().enumerate()).for_each(|(i, &v)| slot[v] = i as u32);
+        let centre = rigid_centre(&next);
+        let rows = super::super::block_rows_on(&next, &modes, &sources, 6, centre, &read);
+        for (r, &v) in read.iter().enumerate() {
+            for d in 0..3 {
+                let whole_row = &x_rows[(3 * v + d) * w..][..wl];
+                assert_eq!(&rows[(3 * r + d) * wl..][..wl], whole_row);
             }
         }
+        let vpe = next.kind.voxels_per_element() as i64;
+        let moved = RigidMoments::with_guards(&previous, &solution, 0)
+            .about([0, 1, 2].map(|a| centre[a] + (offset[a] * vpe) as f64));
+        let modes_side = Previous {
+            model: &previous,
+            columns: &modes,
+            lambda: &lambda_modes,
+        };
+        let x = BlockRows {
+            rows: &rows,
+            w: wl,
+            slot: Some(&slot),
+        };
+        let local = |m: Option<&Moved>| {
+            grams(
+                &ops,
+                &next,
+                Some(&touched),
+                &modes_side,
+                map,
+                x,
+                6,
+                &[],
+                at,
+                m,
+            )
+        };
+        assert!(local(None).is_none(), "a partial block needs the moments");
+        compare(&local(Some(&moved)).expect("local Grams"), wl, at);
     }
 
     #[test]

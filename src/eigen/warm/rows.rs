@@ -11,7 +11,7 @@
 //! previous solution in place: a struck face's rows weighted by the strike, times `C`, are
 //! its forces, a few thousand multiply-adds and no allocation (the audio thread calls it).
 
-use super::transfer::{previous_parts, NodeSources};
+use super::transfer::{previous_parts, NodeSources, Source};
 use crate::eigen::lobpcg::rigid_row;
 use crate::eigen::EigenSolution;
 use crate::fem::FemModel;
@@ -62,12 +62,10 @@ impl RitzRows {
                 *slot = if add { *slot + v } else { v };
             }
         };
-        match self.sources.map[node] {
-            u32::MAX => {
+        match self.sources.source(node) {
+            Source::Kept(o) => fill(carried, o, false),
+            Source::Fresh(sources) => {
                 // A new node: the mean of its persisting neighbours, as it was carried.
-                let fresh = &self.sources.fresh;
-                let at = fresh.binary_search_by_key(&node, |(n, _)| *n);
-                let sources = at.map_or(&[][..], |i| &fresh[i].1[..]);
                 carried.fill(0.0);
                 for &o in sources {
                     fill(carried, o, true);
@@ -77,7 +75,6 @@ impl RitzRows {
                     carried.iter_mut().for_each(|v| *v /= count);
                 }
             }
-            o => fill(carried, o as usize, false),
         }
         let rest = &mut out[f + cc..self.width()];
         rest.fill(0.0);

@@ -141,6 +141,28 @@ impl NodeSources {
     }
 }
 
+/// Where one node of an edited mesh takes its carried values from ([`NodeSources::source`]).
+pub(super) enum Source<'a> {
+    /// A node that persists: its previous node.
+    Kept(usize),
+    /// A new node: the previous nodes at its persisting neighbours, whose mean it carries
+    /// (zero where there are none).
+    Fresh(&'a [usize]),
+}
+
+impl NodeSources {
+    /// Where node `node` of the new mesh takes its carried values from.
+    pub(super) fn source(&self, node: usize) -> Source<'_> {
+        match self.map[node] {
+            u32::MAX => {
+                let at = self.fresh.binary_search_by_key(&node, |(n, _)| *n);
+                Source::Fresh(at.map_or(&[][..], |i| &self.fresh[i].1[..]))
+            }
+            o => Source::Kept(o as usize),
+        }
+    }
+}
+
 /// The previous model's lattice as the new one sees it.
 struct PreviousLattice<'a> {
     previous: &'a FemModel,
