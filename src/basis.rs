@@ -83,9 +83,9 @@ pub struct ModeBasis {
     /// A carried answer's Ritz vectors as factors over the answer it was carried from
     /// ([`ModeBasis::carried_ritz_factored`]); `solution.vectors` then has no columns.
     factored: Option<Arc<carried::Factored>>,
-    /// The rigid fields' mass products with the modes ([`eigen::warm::RigidMoments`]), kept
-    /// on the first stroke carried from this answer for the strokes after it.
-    rigid_moments: std::sync::OnceLock<eigen::warm::RigidMoments>,
+    /// The whole Gram columns the strokes carried from this answer cannot relate
+    /// ([`eigen::warm::ExactGrams`]), kept once for them all.
+    exact_grams: std::sync::OnceLock<Option<eigen::warm::ExactGrams>>,
 }
 
 /// Why a shape could not be solved.
@@ -310,7 +310,7 @@ impl ModeBasis {
                 offset,
                 count,
                 carried::MAX_FACTORED_WIDTH,
-                Some(from.rigid_moments()),
+                from.exact_grams(),
             )
             .map(|(solution, rows)| (solution, rows.map(|r| carried::Factored::new(from, r)))),
         };
@@ -348,7 +348,7 @@ impl ModeBasis {
             assemble_ms,
             surface: exposed_faces(grid),
             factored: factored.map(Arc::new),
-            rigid_moments: std::sync::OnceLock::new(),
+            exact_grams: std::sync::OnceLock::new(),
         };
         basis.orient_to_default_hit();
         basis

@@ -380,16 +380,17 @@ fn a_wide_patch_and_its_extra_modes_tune_the_carried_answer_on_small_objects() {
 fn a_factored_carried_answer_strikes_as_the_formed_one() {
     // The engine's carried answer keeps its Ritz vectors as factors over the exact answer it
     // was carried from (`ModeBasis::carried_ritz_factored`) and forms a strike's rows on
-    // demand, and reads the mesh only near the edit (the rigid fields' Gram rows from the
-    // exact answer's moments, `warm/moments.rs`); `carried_ritz` forms the vectors by one
-    // dense product, and the Grams' rigid rows by whole products. Two strokes on a hex27x2
-    // cup (new nodes, the relaxed patch and its modes all in play), and one on the cup moved
-    // a block from the grid's corner (the fields' centre in the previous mesh's positions):
-    // the same eigenvalues to 1e-10 (the Grams' rigid rows differ by the rounding of a sum
-    // in another order, 1e-11 of them measured; the carried answer itself is 1e-5 to 3e-3
-    // off), and the same forces, after the same orientation, at the default hit, beside
-    // the strokes and at points all round, to 1e-8 of the largest (the same rounding over
-    // the closest pair's gap, 2 %).
+    // demand, and reads the mesh only near the edit (the Gram columns it cannot relate from
+    // the exact answer's whole ones, `warm/exact_grams.rs`); `carried_ritz` forms the vectors
+    // by one dense product, and those Gram columns by whole products. Two strokes on a
+    // hex27x2 cup (new nodes, the relaxed patch and its modes all in play), one on the cup
+    // moved a block from the grid's corner (the fields' centre in the previous mesh's
+    // positions), and one carried from the exact answer of a stroke (no mirrors: its last
+    // guards unconverged, so kept too): the same eigenvalues to 1e-10 (the Grams' kept
+    // columns differ by the rounding of sums in another order, 1e-11 of them measured; the
+    // carried answer itself is 1e-5 to 3e-3 off), and the same forces, after the same
+    // orientation, at the default hit, beside the strokes and at points all round, to 1e-8
+    // of the largest (the same rounding over the closest pair's gap, 2 %).
     let kind = ElementKind::Hex27Blocks;
     let grid = on_blocks(Primitive::Cup {
         diameter: 12.0,
@@ -416,6 +417,17 @@ fn a_factored_carried_answer_strikes_as_the_formed_one() {
     ] {
         strikes_alike(&before, &grid, &edited);
     }
+    let bumped = bump_stroke(&grid);
+    let exact = std::sync::Arc::new(
+        ModeBasis::solve(&bumped, kind, NU, SolverKind::Auto, &options).expect("exact solve"),
+    );
+    let guards = &exact.solution.guard_residuals;
+    // (Not computed, NaN, or above the solver tolerance.)
+    assert!(
+        guards.iter().any(|&r| !(r <= 1e-6)),
+        "unconverged guards: {guards:?}"
+    );
+    strikes_alike(&exact, &bumped, &bump_stroke(&bumped));
 }
 
 /// The check of [`a_factored_carried_answer_strikes_as_the_formed_one`] for one edit, `grid`

@@ -11,7 +11,7 @@
 //! thread needs ([`ModeBasis::reference_forces_into`]).
 
 use super::{BasisError, FaceWeights, ModeBasis};
-use crate::eigen::warm::{RigidMoments, RitzRows};
+use crate::eigen::warm::{ExactGrams, RitzRows};
 use crate::fem::{ElementCache, ElementKind, FemModel};
 use crate::shape::VoxelGrid;
 use std::sync::Arc;
@@ -120,12 +120,14 @@ impl ModeBasis {
         Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
     }
 
-    /// The rigid fields' mass products with this answer's modes, which let a carried answer
-    /// read the mesh only near its edit ([`RigidMoments`]): one pass over the mesh on the
-    /// first call, kept for the later ones.
-    pub fn rigid_moments(&self) -> &RigidMoments {
-        self.rigid_moments
-            .get_or_init(|| RigidMoments::new(&self.model, &self.solution))
+    /// The whole Gram columns a stroke carried from this answer cannot relate, which let its
+    /// carried answer read the mesh only near the edit ([`ExactGrams`]; `None` for a shape
+    /// of several parts): a few products over the mesh on the first call, kept for the
+    /// later ones.
+    pub fn exact_grams(&self) -> Option<&ExactGrams> {
+        self.exact_grams
+            .get_or_init(|| ExactGrams::new(&self.model, &self.solution))
+            .as_ref()
     }
 
     /// Whether the vectors are kept as factors ([`ModeBasis::carried_ritz_factored`]).

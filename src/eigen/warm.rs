@@ -9,7 +9,8 @@
 //!   the object) and re-balanced by one Rayleigh-Ritz step, whose Gram matrices are the previous
 //!   solve's updated near the edit (`warm/grams.rs`). The engine's, [`ritz_factored`], reads
 //!   nothing of the mesh away from the edit: its vectors stay factors (`warm/rows.rs`) and
-//!   the rigid fields' Gram rows come from the previous answer's moments (`warm/moments.rs`);
+//!   the Gram columns it cannot relate (the rigid fields, unconverged guards) come from the
+//!   previous answer's whole ones (`warm/exact_grams.rs`);
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
@@ -34,12 +35,12 @@
 //!    the iterations spent.
 
 mod correction;
+mod exact_grams;
 mod grams;
-mod moments;
 mod rows;
 mod transfer;
 
-pub use moments::RigidMoments;
+pub use exact_grams::ExactGrams;
 pub use rows::RitzRows;
 pub use transfer::{align, align_voxels, transfer, Transferred};
 use transfer::{previous_columns, transfer_rows, NodeSources, Source};
@@ -165,7 +166,7 @@ pub fn ritz(
 /// `rigid_vectors` then have no columns. Wider (a large correction), they are formed as by
 /// [`ritz`] and the rows are `None`. The engine's carried answer, which a strike reads a few
 /// rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]). Given the previous answer's
-/// [`RigidMoments`], a local edit reads the carried block only near the edit.
+/// [`ExactGrams`], a local edit reads the carried block only near the edit.
 pub fn ritz_factored(
     next: &FemModel,
     previous: &FemModel,
@@ -173,7 +174,7 @@ pub fn ritz_factored(
     offset: [i64; 3],
     count: usize,
     max_width: usize,
-    moments: Option<&RigidMoments>,
+    kept: Option<&ExactGrams>,
 ) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     ritz_with(
         next,
@@ -182,7 +183,7 @@ pub fn ritz_factored(
         offset,
         count,
         Some(max_width),
-        moments,
+        kept,
     )
 }
 
@@ -194,7 +195,7 @@ fn ritz_with(
     offset: [i64; 3],
     count: usize,
     factored: Option<usize>,
-    moments: Option<&RigidMoments>,
+    kept: Option<&ExactGrams>,
 ) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     let t0 = Instant::now();
     // No norms: this answer reports no residuals.
@@ -229,15 +230,14 @@ fn ritz_with(
     };
     let centre = rigid_centre(next);
     // The factored answer reads no row of the carried block away from the edit where the
-    // previous answer's rigid moments stand for the fields' whole products
-    // (`warm/moments.rs`): every carried column related, the edit local.
-    let moved = moments
-        .filter(|m| factored.is_some() && fields == 6 && m.fits(previous_solution))
-        .filter(|_| lambda.iter().all(Option::is_some))
-        .map(|m| {
+    // previous answer's whole Gram columns stand for those of the columns it cannot relate
+    // (`warm/exact_grams.rs`) and the edit is local.
+    let moved = kept
+        .filter(|g| factored.is_some() && fields == 6 && g.fits(previous_solution))
+        .map(|g| {
             // The same centre in the previous mesh's positions (voxel units).
             let shift = offset.map(|d| (d * next.kind.voxels_per_element() as i64) as f64);
-            m.about([0, 1, 2].map(|a| centre[a] + shift[a]))
+            g.about([0, 1, 2].map(|a| centre[a] + shift[a]))
         });
     let local = moved.as_ref().zip(touched.as_ref()).and_then(|(mv, t)| {
         let read = grams::rows_read(next, rows_at, t);

@@ -180,6 +180,12 @@ impl ModeSolver for IncrementalFemSolver {
                     &r.options,
                     stop,
                 )?);
+                // What the strokes carried from this answer read in place of whole products
+                // (`eigen/warm/exact_grams.rs`): a few products over the mesh, here rather
+                // than in the first stroke's answer.
+                if matches!(r.options.count, ModeCount::First(_)) {
+                    basis.exact_grams();
+                }
                 self.kept.keep(r, &basis);
                 basis
             }

@@ -23,15 +23,15 @@
 //! fields, whose images `K r = 0` are exact, the carried guards and extra rigid modes, the modes
 //! of an approximate previous answer: a residual above [`RELATION_MAX_RESIDUAL`]) are multiplied
 //! out over the whole mesh, and their Gram rows with every column formed from those products;
-//! except where the rigid fields are the only such columns and the previous answer's
-//! [`Moved`] moments are given (the engine's factored answer, `warm/moments.rs`): their rows
-//! are then updated near the edit as the carried modes' are, and `X` is read only there.
+//! except where the previous answer's whole Gram columns of them are given ([`Moved`], the
+//! engine's factored answer, `warm/exact_grams.rs`): those are then updated near the edit as
+//! the carried modes' are, and `X` is read only there.
 //!
 //! The error this leaves is the previous solve's residual: a relative error of about 1e-6 in
 //! the Gram matrices, three orders below what the carried answer is accurate to (1e-5 to 3e-3).
 
 use super::super::{EigenSolution, Operators, Which};
-use super::moments::Moved;
+use super::exact_grams::Moved;
 use super::nodes_near;
 use crate::buffer;
 use crate::eigen::lobpcg::rigid_row;
@@ -119,9 +119,9 @@ impl<'a> BlockRows<'a> {
     }
 }
 
-/// The nodes whose rows of `X` [`grams`] reads where the edit is local and the rigid fields'
-/// products come from [`Moved`] moments: the patch's (`rows_at`), the `touched` ones, and
-/// their neighbours in `next`'s pattern. Ascending.
+/// The nodes whose rows of `X` [`grams`] reads where the edit is local and the columns it
+/// cannot relate come from [`Moved`] kept columns: the patch's (`rows_at`), the `touched`
+/// ones, and their neighbours in `next`'s pattern. Ascending.
 pub(super) fn rows_read(next: &FemModel, rows_at: &[usize], touched: &[usize]) -> Vec<usize> {
     let p = &next.pattern;
     let mut read = vec![false; next.nodes()];
@@ -139,10 +139,11 @@ pub(super) fn rows_read(next: &FemModel, rows_at: &[usize], touched: &[usize]) -
 /// previous node (`u32::MAX` for a new one); `fields_rows` is the rigid fields by rows (`n x
 /// 6`, [`crate::eigen::lobpcg::rigid_fields`]) where `fields` is 6 and `X` is whole (else
 /// empty). By the previous solve's Grams where the edit is local (see the module docs), else
-/// by whole products. The rigid fields' rows come from `moments` (the previous answer's,
-/// about the fields' centre) where those are given, every carried column is related and the
-/// edit is local; else by whole products, which need `X` whole: `None` if it is not. The
-/// rows of `K X` and `M X` on `rows_at` are multiplied out either way.
+/// by whole products. The columns that are not related (the rigid fields, unconverged
+/// guards) come from `kept` (the previous answer's whole Gram columns, the fields about the
+/// same centre) where those are given for the same columns and the edit is local; else by
+/// whole products, which need `X` whole: `None` if it is not. The rows of `K X` and `M X`
+/// on `rows_at` are multiplied out either way.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn grams(
     ops: &Operators,
@@ -154,7 +155,7 @@ pub(super) fn grams(
     fields: usize,
     fields_rows: &[f64],
     rows_at: &[usize],
-    moments: Option<&Moved>,
+    kept: Option<&Moved>,
 ) -> Option<Grams> {
     let (n, w) = (ops.dofs(), x.w);
     let new_blocks = Blocks::of(ops.pattern, ops.k, ops.m);
@@ -219,14 +220,13 @@ pub(super) fn grams(
     // The columns multiplied out, and their Gram columns against every column.
     let others: Vec<usize> = (0..w).filter(|&j| lambda[j].is_none()).collect();
     let no = others.len();
-    // The rigid fields' rows from the previous answer's moments (`warm/moments.rs`): only
-    // where they are all that is multiplied out.
-    let moved = moments.filter(|_| fields == 6 && no == fields);
+    // Their Gram columns from the previous answer's (`warm/exact_grams.rs`), where it kept
+    // the same columns.
+    let moved = kept.filter(|mv| fields == 6 && mv.others == others);
     // The rigid fields' images are zero (they lead `others`): only the rest are multiplied
     // (none, where every carried mode and guard converged), their Gram columns beside zeros.
     let rigid = others.iter().take_while(|&&j| j < fields).count();
-    let mut k_cross = Mat::<f64>::zeros(w, no);
-    let m_cross = if moved.is_some() {
+    let whole_cross = if moved.is_some() {
         None
     } else {
         let x_rows = x.slot.is_none().then_some(x.rows)?;
@@ -243,6 +243,7 @@ pub(super) fn grams(
                     .into()
             };
         let mo = ops.rows_product(Which::M, &xo, no);
+        let mut k_cross = Mat::<f64>::zeros(w, no);
         if rigid < no {
             let nk = no - rigid;
             let xk: Vec<f64> = (0..n * nk)
@@ -253,7 +254,7 @@ pub(super) fn grams(
                 .get_mut(.., rigid..)
                 .copy_from(cross_rows(x_rows, w, &kk, nk));
         }
-        Some(cross_rows(x_rows, w, &mo, no))
+        Some((k_cross, cross_rows(x_rows, w, &mo, no)))
     };
     // The related block: the previous Grams, plus the new rows near the edit, less the previous
     // rows on `left`.
@@ -308,15 +309,24 @@ pub(super) fn grams(
         let local = |a: &Mat<f64>, p: usize, q: usize| a[(p, q)] + a[(q, p)];
         0.5 * (local(new, i, j) - local(old, old_at(i), old_at(j)))
     };
-    let m_cross = m_cross.unwrap_or_else(|| {
-        let mv = moved.expect("moments, where not multiplied out");
-        Mat::from_fn(w, fields, |i, c| {
-            let before = match i.checked_sub(fields) {
-                None => mv.fields[(i, c)],
-                Some(j) => mv.carried[(c, j)],
-            };
-            before + change(&m_new, &m_old, i, c)
-        })
+    let (k_cross, m_cross) = whole_cross.unwrap_or_else(|| {
+        let mv = moved.expect("kept columns, where not multiplied out");
+        let cross = |g: &Mat<f64>, new: &Mat<f64>, old: &Mat<f64>, from: usize| {
+            Mat::from_fn(w, no, |i, c| {
+                if c >= from {
+                    g[(i, c)] + change(new, old, i, others[c])
+                } else {
+                    0.0
+                }
+            })
+        };
+        // The fields' `K` columns are zero, as multiplied out: their sums near the edit are
+        // rounding only, and that rounding on the fields' own block moved the Ritz values
+        // by 1e-8 (the fields' `M` block is large, positions squared).
+        (
+            cross(&mv.k, &k_new, &k_old, rigid),
+            cross(&mv.m, &m_new, &m_old, 0),
+        )
     });
     let assemble = |which: Which, new: &Mat<f64>, old: &Mat<f64>, cross: &Mat<f64>| {
         let mut g = Mat::<f64>::zeros(w, w);
@@ -525,7 +535,7 @@ pub(super) fn touched_nodes(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Opti
 
 #[cfg(test)]
 mod tests {
-    use super::super::moments::RigidMoments;
+    use super::super::exact_grams::ExactGrams;
     use super::super::transfer::previous_columns;
     use super::*;
     use crate::eigen::lobpcg::{rigid_centre, rigid_fields};
@@ -555,7 +565,11 @@ mod tests {
             count: ModeCount::First(20),
             ..Default::default()
         };
-        let solution = eigen::solve(&previous, SolverKind::Lanczos, &options).unwrap();
+        let mut solution = eigen::solve(&previous, SolverKind::Lanczos, &options).unwrap();
+        // Two guards taken as unconverged, as a whole solve's last Ritz vectors often are:
+        // multiplied out (or kept, below) instead of related.
+        solution.guard_residuals[1] = 1.0;
+        solution.guard_residuals[5] = 1.0;
         let previous_ops = Operators::new(&previous);
         let mut own_residuals =
             previous_ops.block_residuals(&solution.eigenvalues, solution.vectors.as_ref());
@@ -590,6 +604,7 @@ mod tests {
         // Every mode is related, and some of the guards (the classes' modes above the 20th).
         assert!(lambda[..20].iter().all(|l| l.is_some()));
         assert!(lambda[20..].iter().any(|l| l.is_some()));
+        assert_eq!(lambda[21..26].iter().filter(|l| l.is_none()).count(), 2);
         let patch: Vec<usize> = (0..next.nodes()).step_by(7).collect();
         let previous_side = Previous {
             model: &previous,
@@ -679,15 +694,11 @@ mod tests {
                 assert!((whole.m[(i, j)] - want_m[(i, j)]).abs() <= rounding * ops.m_norm);
             }
         }
-        // The factored answer's way (`warm/moments.rs`): the modes alone carried, every one
-        // related, so the rigid fields are all that would be multiplied out; their rows come
-        // from the previous answer's moments, and the block is given only on the rows read
-        // near the edit (the same values as the whole block's, to the bit). The same bounds
-        // on its columns; without the moments such a block gives no Grams.
-        let modes = previous_columns(&solution, 0);
-        let wl = 6 + modes.len();
-        let lambda_modes = relations(&solution, 0, modes.len());
-        assert!(lambda_modes.iter().all(Option::is_some));
+        // The factored answer's way (`warm/exact_grams.rs`): the columns it cannot relate
+        // (the rigid fields and the unconverged guards) from the previous answer's whole Gram
+        // columns, and the block given only on the rows read near the edit (the same values
+        // as the whole block's, to the bit). The same bounds; without the kept columns such a
+        // block gives no Grams.
         let touched = touched.expect("a local edit");
         let at = &touched[..touched.len() / 2];
         let read = rows_read(&next, at, &touched);
@@ -701,24 +712,20 @@ mod tests {
         let mut slot = vec![u32::MAX; next.nodes()];
         (read.iter().enumerate()).for_each(|(i, &v)| slot[v] = i as u32);
         let centre = rigid_centre(&next);
-        let rows = super::super::block_rows_on(&next, &modes, &sources, 6, centre, &read);
+        let rows = super::super::block_rows_on(&next, &old, &sources, 6, centre, &read);
         for (r, &v) in read.iter().enumerate() {
             for d in 0..3 {
-                let whole_row = &x_rows[(3 * v + d) * w..][..wl];
-                assert_eq!(&rows[(3 * r + d) * wl..][..wl], whole_row);
+                let whole_row = &x_rows[(3 * v + d) * w..][..w];
+                assert_eq!(&rows[(3 * r + d) * w..][..w], whole_row);
             }
         }
         let vpe = next.kind.voxels_per_element() as i64;
-        let moved = RigidMoments::with_guards(&previous, &solution, 0)
+        let moved = ExactGrams::new(&previous, &solution)
+            .expect("one part")
             .about([0, 1, 2].map(|a| centre[a] + (offset[a] * vpe) as f64));
-        let modes_side = Previous {
-            model: &previous,
-            columns: &modes,
-            lambda: &lambda_modes,
-        };
         let x = BlockRows {
             rows: &rows,
-            w: wl,
+            w,
             slot: Some(&slot),
         };
         let local = |m: Option<&Moved>| {
@@ -726,7 +733,7 @@ mod tests {
                 &ops,
                 &next,
                 Some(&touched),
-                &modes_side,
+                &previous_side,
                 map,
                 x,
                 6,
@@ -735,8 +742,11 @@ mod tests {
                 m,
             )
         };
-        assert!(local(None).is_none(), "a partial block needs the moments");
-        compare(&local(Some(&moved)).expect("local Grams"), wl, at);
+        assert!(
+            local(None).is_none(),
+            "a partial block needs the kept columns"
+        );
+        compare(&local(Some(&moved)).expect("local Grams"), w, at);
     }
 
     #[test]
