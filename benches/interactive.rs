@@ -426,25 +426,32 @@ fn main() {
         for add in [true, false] {
             let edited = stroke(&current, add);
             // The median of a few carried answers, each from the cache as the chain has it
-            // before the stroke (one run varies by tens of percent on a shared machine).
-            let mut runs: Vec<(f64, _, ElementCache)> = (0..COLD_RUNS)
-                .map(|_| {
-                    let mut chain_cache = cache.clone();
-                    let t = Instant::now();
-                    let carried = ModeBasis::carried_ritz_factored(
-                        &edited,
-                        kind,
-                        nu,
-                        MODES,
-                        &previous,
-                        Some(&mut chain_cache),
-                    )
-                    .expect("comparable");
-                    (t.elapsed().as_secs_f64() * 1e3, carried, chain_cache)
-                })
-                .collect();
-            runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let (carried_ms, carried, after) = runs.swap_remove(COLD_RUNS / 2);
+            // before the stroke (one run varies by tens of percent on a shared machine). Each
+            // answer is dropped once the next one is made, as the engine's worker frees a
+            // played answer once the audio thread retires it: the next but one reuses its
+            // matrices' memory (`crate::buffer`).
+            // The engine's exact solver keeps these after its solve, outside a stroke's time.
+            previous.exact_grams();
+            let mut carried_runs = Vec::with_capacity(COLD_RUNS);
+            let mut last = None;
+            for _ in 0..COLD_RUNS {
+                let mut chain_cache = cache.clone();
+                let t = Instant::now();
+                let carried = ModeBasis::carried_ritz_factored(
+                    &edited,
+                    kind,
+                    nu,
+                    MODES,
+                    &previous,
+                    Some(&mut chain_cache),
+                )
+                .expect("comparable");
+                carried_runs.push(t.elapsed().as_secs_f64() * 1e3);
+                last = Some((carried, chain_cache));
+            }
+            carried_runs.sort_by(f64::total_cmp);
+            let carried_ms = carried_runs[COLD_RUNS / 2];
+            let (carried, after) = last.expect("runs");
             if quick {
                 cache_effect(&edited, kind, nu, &previous, &cache);
             }
