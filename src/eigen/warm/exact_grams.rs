@@ -26,7 +26,7 @@
 
 use super::grams::relations;
 use super::transfer::{previous_columns, previous_parts};
-use super::RITZ_GUARDS;
+use super::{extra_rigid, RITZ_GUARDS};
 use crate::eigen::lobpcg::rigid_row;
 use crate::eigen::{EigenSolution, Operators, Which};
 use crate::fem::FemModel;
@@ -56,7 +56,7 @@ impl ExactGrams {
     /// the solution carries extra rigid modes (a shape of several parts), whose carried
     /// block has no rigid fields.
     pub fn new(model: &FemModel, solution: &EigenSolution) -> Option<Self> {
-        if solution.rigid_vectors.ncols() > FIELDS {
+        if extra_rigid(solution).ncols() > 0 {
             return None;
         }
         let n = model.dofs();
@@ -80,36 +80,32 @@ impl ExactGrams {
         }
         let ops = Operators::without_norms(model);
         let fields = MatRef::from_row_major_slice(&y_o, n, no).subcols(0, FIELDS);
-        // `Y^T A Y_o`: the fields' rows, then the carried columns' part by part (each part's
-        // columns are contiguous: one general product each).
-        let gram = |a_y_o: &[f64]| {
-            let a_y_o = MatRef::from_row_major_slice(a_y_o, n, no);
-            let mut g = Mat::zeros(FIELDS + columns.len(), no);
-            g.get_mut(..FIELDS, ..)
-                .copy_from(fields.transpose() * a_y_o);
+        // `Y^T B` for a block `B` by rows: the fields' rows, then the carried columns' part by
+        // part (each part's columns are contiguous: one general product each).
+        let gram = |b: &[f64], width: usize| {
+            let b = MatRef::from_row_major_slice(b, n, width);
+            let mut g = Mat::zeros(FIELDS + columns.len(), width);
+            g.get_mut(..FIELDS, ..).copy_from(fields.transpose() * b);
             let mut at = FIELDS;
             for part in parts {
                 let w = part.ncols();
-                g.get_mut(at..at + w, ..)
-                    .copy_from(part.transpose() * a_y_o);
+                g.get_mut(at..at + w, ..).copy_from(part.transpose() * b);
                 at += w;
             }
             g
         };
-        let m = gram(&ops.rows_product(Which::M, &y_o, no));
-        // `K R = 0` (the elements hold rigid motions exactly): only the rest are multiplied.
-        let mut k_y_o = vec![0.0; n * no];
+        let m = gram(&ops.rows_product(Which::M, &y_o, no), no);
+        // `K R = 0` (the elements hold rigid motions exactly): only the rest are multiplied,
+        // their columns beside the fields' zeros.
+        let mut k = Mat::zeros(FIELDS + columns.len(), no);
         if no > FIELDS {
             let nu = no - FIELDS;
             let x_u: Vec<f64> = (0..n * nu)
                 .map(|i| y_o[i / nu * no + FIELDS + i % nu])
                 .collect();
             let k_x_u = ops.rows_product(Which::K, &x_u, nu);
-            for (row, k) in k_y_o.chunks_exact_mut(no).zip(k_x_u.chunks_exact(nu)) {
-                row[FIELDS..].copy_from_slice(k);
-            }
+            k.get_mut(.., FIELDS..).copy_from(gram(&k_x_u, nu));
         }
-        let k = gram(&k_y_o);
         Some(ExactGrams {
             others,
             m,
