@@ -88,17 +88,24 @@ fn carried_answer_of_an_unchanged_shape_is_exact() {
     assert!(worst_relative(&frequencies(&r), &frequencies(&b)) < 1e-9);
 }
 
+/// `grid` with every voxel `by` voxels further from the corner on x and z, fills kept.
+fn moved_from_corner(grid: &VoxelGrid, by: usize) -> VoxelGrid {
+    let d = grid.dims();
+    let mut moved =
+        VoxelGrid::new([d[0] + by, d[1], d[2] + by], grid.voxel_size_m()).expect("grid");
+    for [x, y, z] in grid.solid_voxels() {
+        let fill = grid.fill_at(x as isize, y as isize, z as isize);
+        moved.set_fill(x + by, y, z + by, fill);
+    }
+    moved
+}
+
 #[test]
 fn alignment_follows_a_moved_origin() {
     let grid = bowl();
     let b = cold(&grid);
     // The same object one voxel further from the corner on x and z.
-    let d = grid.dims();
-    let mut moved = VoxelGrid::new([d[0] + 1, d[1], d[2] + 1], 1.0).unwrap();
-    for [x, y, z] in grid.solid_voxels() {
-        let fill = grid.fill_at(x as isize, y as isize, z as isize);
-        moved.set_fill(x + 1, y, z + 1, fill);
-    }
+    let moved = moved_from_corner(&grid, 1);
     let model = FemModel::assemble(&moved, ElementKind::Hex8Incompatible, NU).unwrap();
     assert_eq!(warm::align(&b.model, &model), ([-1, 0, -1], grid.count()));
     let r = ModeBasis::carried_ritz(&moved, ElementKind::Hex8Incompatible, NU, MODES, &b, None)
@@ -404,13 +411,7 @@ fn a_factored_carried_answer_strikes_as_the_formed_one() {
     let before = std::sync::Arc::new(
         ModeBasis::solve(&grid, kind, NU, SolverKind::Auto, &options).expect("cold solve"),
     );
-    let per = ElementKind::Hex27Blocks.voxels_per_element();
-    let d = grid.dims();
-    let mut moved = VoxelGrid::new([d[0] + per, d[1], d[2] + per], 1.0).expect("grid");
-    for [x, y, z] in grid.solid_voxels() {
-        let fill = grid.fill_at(x as isize, y as isize, z as isize);
-        moved.set_fill(x + per, y, z + per, fill);
-    }
+    let moved = moved_from_corner(&grid, kind.voxels_per_element());
     for (grid, edited) in [
         (grid.clone(), bump_stroke(&bump_stroke(&grid))),
         (moved.clone(), bump_stroke(&moved)),
