@@ -52,7 +52,7 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| {
                 sparse::spmm(
                     &model.pattern,
-                    &model.k,
+                    model.k(),
                     black_box(&x),
                     &mut y,
                     RowBlock::dense(w),
@@ -66,7 +66,7 @@ fn kernels(c: &mut Criterion) {
     // carried block (74 columns).
     let bowl16 = FemModel::assemble(&bowl(16), ElementKind::Hex27Blocks, 0.24).expect("model");
     let nb = bowl16.dofs();
-    let mass_blocks = sparse::mass_as_blocks(&bowl16.m);
+    let mass_blocks = sparse::mass_as_blocks(bowl16.m());
     let mut group = c.benchmark_group("mass_spmm_bowl16_hex27x2");
     for width in [8usize, 74] {
         let x = vec![1.0; nb * width];
@@ -76,7 +76,7 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| sparse::spmm(&bowl16.pattern, &mass_blocks, black_box(&x), &mut y, layout))
         });
         group.bench_with_input(BenchmarkId::new("scalar", width), &width, |b, _| {
-            b.iter(|| sparse::spmm_mass(&bowl16.pattern, &bowl16.m, black_box(&x), &mut y, layout))
+            b.iter(|| sparse::spmm_mass(&bowl16.pattern, bowl16.m(), black_box(&x), &mut y, layout))
         });
     }
     group.finish();
@@ -90,7 +90,7 @@ fn kernels(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("symbolic_and_numeric", |b| {
         b.iter(|| {
-            ShiftedCholesky::from_blocks(&bowl16.pattern, &bowl16.k, &bowl16.m, shift, &nodes)
+            ShiftedCholesky::from_blocks(&bowl16.pattern, bowl16.k(), bowl16.m(), shift, &nodes)
                 .expect("factor")
         })
     });

@@ -276,13 +276,13 @@ fn export_for_scipy(dir: &std::path::Path) {
         let grid = grid_of(spec, ElementKind::Hex8Incompatible);
         let model = FemModel::assemble(&grid, ElementKind::Hex8Incompatible, nu).expect("model");
         // The mass as 3x3 blocks, for the same CSC writer (`K - 0 M` is `K`).
-        let mass_blocks = mass_as_blocks(&model.m);
+        let mass_blocks = mass_as_blocks(model.m());
         let in_order: Vec<usize> = (0..model.nodes()).collect();
-        for (which, a) in [("K", &model.k), ("M", &mass_blocks)] {
+        for (which, a) in [("K", model.k()), ("M", &mass_blocks)] {
             let upper = permuted_shifted_csc(
                 &model.pattern,
                 a,
-                BlockMass::Scalar(&model.m),
+                BlockMass::Scalar(model.m()),
                 0.0,
                 &in_order,
                 faer::Side::Upper,

@@ -67,7 +67,9 @@ pub enum HitError {
 pub struct ModeBasis {
     /// [`VoxelGrid::shape_hash`] of the solved grid.
     pub shape_hash: u64,
-    /// The FEM model (node numbering and positions for hit interpolation).
+    /// The FEM model (node numbering and positions for hit interpolation). An engine's carried
+    /// answer's ([`ModeBasis::carried_ritz_factored`]) holds `K` and `M` only near its edit
+    /// ([`FemModel::is_whole`]).
     pub model: FemModel,
     /// The eigen-solution in reference units.
     pub solution: EigenSolution,
@@ -288,7 +290,30 @@ impl ModeBasis {
             return None;
         }
         let t = std::time::Instant::now();
-        let model = match FemModel::assemble_after_edit(grid, element, poisson_ratio, old, cache) {
+        // The factored answer reads `K` and `M` only near the edit: its model holds no more.
+        let near = match from {
+            carried::CarriedFrom::Formed(_) => None,
+            carried::CarriedFrom::Factored(_) => Some(eigen::warm::rows_read_radius_cells(element)),
+        };
+        let mut cache = cache;
+        let assembled = match near {
+            None => FemModel::assemble_after_edit(
+                grid,
+                element,
+                poisson_ratio,
+                old,
+                cache.as_deref_mut(),
+            ),
+            Some(r) => FemModel::assemble_near_edit(
+                grid,
+                element,
+                poisson_ratio,
+                old,
+                cache.as_deref_mut(),
+                r,
+            ),
+        };
+        let mut model = match assembled {
             Ok(m) => m,
             Err(e) => return Some(Err(e.into())),
         };
@@ -303,16 +328,38 @@ impl ModeBasis {
                 eigen::warm::ritz(&model, old, &previous.solution, offset, count)
                     .map(|solution| (solution, None))
             }
-            carried::CarriedFrom::Factored(from) => eigen::warm::ritz_factored(
-                &model,
-                old,
-                &previous.solution,
-                offset,
-                count,
-                carried::MAX_FACTORED_WIDTH,
-                from.exact_grams(),
-            )
-            .map(|(solution, rows)| (solution, rows.map(|r| carried::Factored::new(from, r)))),
+            carried::CarriedFrom::Factored(from) => {
+                let ritz = |model: &FemModel| {
+                    eigen::warm::ritz_factored(
+                        model,
+                        old,
+                        &previous.solution,
+                        offset,
+                        count,
+                        carried::MAX_FACTORED_WIDTH,
+                        from.exact_grams(),
+                    )
+                };
+                let mut answer = ritz(&model);
+                if matches!(answer, Err(eigen::EigenError::RowsNotHeld)) {
+                    // The answer reads beyond the rows held (an edit that is not local, or
+                    // no kept Gram columns): the whole model.
+                    model = match FemModel::assemble_after_edit(
+                        grid,
+                        element,
+                        poisson_ratio,
+                        old,
+                        cache,
+                    ) {
+                        Ok(m) => m,
+                        Err(e) => return Some(Err(e.into())),
+                    };
+                    answer = ritz(&model);
+                }
+                answer.map(|(solution, rows)| {
+                    (solution, rows.map(|r| carried::Factored::new(from, r)))
+                })
+            }
         };
         Some(
             answer

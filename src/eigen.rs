@@ -236,6 +236,10 @@ pub enum EigenError {
     /// The request itself is invalid.
     #[error("invalid eigen request: {0}")]
     BadRequest(String),
+    /// A carried answer needs rows of `K` and `M` that its model, assembled only near the edit
+    /// ([`crate::fem::FemModel::assemble_near_edit`]), does not hold: assemble the whole model.
+    #[error("the model holds K and M only near the edit, and this answer reads rows beyond it")]
+    RowsNotHeld,
     /// The caller's [`Stop`] asked the solve to give up (a newer edit superseded it).
     #[error("the solve was interrupted: a newer request superseded it")]
     Interrupted,

@@ -53,10 +53,35 @@ pub struct FemModel {
     pub cell_fills: Vec<u64>,
     /// Block sparsity shared by `K` and `M`.
     pub pattern: BlockPattern,
-    /// Stiffness blocks.
-    pub k: Blocks,
-    /// Mass, one scalar per block (every block is `m_ab I3`, [`sparse::MassBlocks`]).
-    pub m: sparse::MassBlocks,
+    /// Stiffness blocks ([`FemModel::k`]).
+    k: Blocks,
+    /// Mass, one scalar per block (every block is `m_ab I3`, [`sparse::MassBlocks`];
+    /// [`FemModel::m`]).
+    m: sparse::MassBlocks,
+    /// `None` for a whole model; for the model of a stroke's carried answer
+    /// ([`FemModel::assemble_near_edit`]), which rows of `k` and `m` it holds.
+    near_edit: Option<NearEdit>,
+}
+
+/// What a model assembled only near an edit holds ([`FemModel::assemble_near_edit`]): the
+/// rows of its nodes within a few cells of the edit, and the traces of the whole matrices.
+#[derive(Clone, Debug)]
+pub(crate) struct NearEdit {
+    /// Per node: whether its rows of `K` and `M` are held (the others are unspecified).
+    pub held: Vec<bool>,
+    /// `trace K` and `trace M` of the whole model.
+    pub traces: [f64; 2],
+}
+
+/// A model's `K` and `M` as its rows are held: every row, or only those near an edit
+/// ([`FemModel::assemble_near_edit`]), which a reader checks ([`FemModel::holds_rows`]).
+pub(crate) struct RowsHeld<'a> {
+    /// Stiffness blocks on the model's pattern; outside `held`, unspecified values.
+    pub k: &'a [[f64; 9]],
+    /// Mass blocks on the model's pattern; outside `held`, unspecified values.
+    pub m: &'a [f64],
+    /// `trace K` and `trace M` where only some rows are held (`None` where every row is).
+    pub traces: Option<[f64; 2]>,
 }
 
 /// `K` and `M` go back to the process's kept buffers ([`crate::buffer`]): a sculpting session
@@ -113,16 +138,96 @@ impl FemModel {
         previous: &FemModel,
         cache: Option<&mut ElementCache>,
     ) -> Result<Self, ShapeError> {
-        Self::assemble_with(grid, kind, poisson_ratio, cache, true, Some(previous))
+        let after = assembly::After {
+            previous,
+            held_radius: None,
+        };
+        Self::assemble_with(grid, kind, poisson_ratio, cache, true, Some(after))
+    }
+
+    /// [`FemModel::assemble_after_edit`] holding only the rows of `K` and `M` of the nodes
+    /// within `radius_cells` element cells of the edit (and the whole matrices' traces):
+    /// what a stroke's carried answer reads ([`crate::eigen::warm::ritz_factored`], which
+    /// checks that it holds every row it reads). The untouched rows beyond are not copied (6-10
+    /// ms of the ceramic cup's carried answer: `K` is 35 MB). [`FemModel::k`] and
+    /// [`FemModel::m`] panic on such a model ([`FemModel::is_whole`]); nothing but the
+    /// carried answer and its strikes reads it. Where the edit is not local (see
+    /// [`FemModel::assemble_after_edit`]) the model is whole.
+    pub fn assemble_near_edit(
+        grid: &VoxelGrid,
+        kind: ElementKind,
+        poisson_ratio: f64,
+        previous: &FemModel,
+        cache: Option<&mut ElementCache>,
+        radius_cells: usize,
+    ) -> Result<Self, ShapeError> {
+        let after = assembly::After {
+            previous,
+            held_radius: Some(radius_cells),
+        };
+        Self::assemble_with(grid, kind, poisson_ratio, cache, true, Some(after))
     }
 
     /// The same model with `K` multiplied by `stiffness` and `M` by `mass` (for example
     /// `E h` and `rho h^3` to obtain the physical matrices).
     pub fn scaled(&self, stiffness: f64, mass: f64) -> Self {
+        self.assert_whole();
         let mut out = self.clone();
         out.k.iter_mut().flatten().for_each(|v| *v *= stiffness);
         out.m.iter_mut().for_each(|v| *v *= mass);
         out
+    }
+
+    /// The stiffness blocks on [`FemModel::pattern`]. Panics for a model assembled only near
+    /// an edit ([`FemModel::assemble_near_edit`]; [`FemModel::is_whole`] says which): its
+    /// other rows are not there to read.
+    pub fn k(&self) -> &Blocks {
+        self.assert_whole();
+        &self.k
+    }
+
+    /// The mass blocks on [`FemModel::pattern`]; panics as [`FemModel::k`] does.
+    pub fn m(&self) -> &sparse::MassBlocks {
+        self.assert_whole();
+        &self.m
+    }
+
+    /// Whether the model holds every row of `K` and `M` (every model but a stroke's carried
+    /// answer's, [`FemModel::assemble_near_edit`]).
+    pub fn is_whole(&self) -> bool {
+        self.near_edit.is_none()
+    }
+
+    /// `K` and `M` as held: the reader near an edit checks [`FemModel::holds_rows`] for the
+    /// rows it reads ([`crate::eigen::warm`]).
+    pub(crate) fn rows_held(&self) -> RowsHeld<'_> {
+        RowsHeld {
+            k: &self.k,
+            m: &self.m,
+            traces: self.near_edit.as_ref().map(|n| n.traces),
+        }
+    }
+
+    /// Whether the rows of every node of `nodes` are held.
+    pub(crate) fn holds_rows(&self, nodes: &[usize]) -> bool {
+        self.near_edit
+            .as_ref()
+            .is_none_or(|n| nodes.iter().all(|&a| n.held[a]))
+    }
+
+    /// The stiffness blocks to change (the tests' perturbed models).
+    #[cfg(test)]
+    pub(crate) fn k_mut(&mut self) -> &mut Blocks {
+        self.assert_whole();
+        &mut self.k
+    }
+
+    fn assert_whole(&self) {
+        assert!(
+            self.is_whole(),
+            "this model holds K and M only near an edit (a stroke's carried answer); \
+             assemble the whole model to read them"
+        );
     }
 
     /// Number of nodes.

@@ -58,7 +58,7 @@ fn binary_grids_assemble_exactly_todays_matrices() {
             &mut k,
             &mut m,
         );
-        assert!(model.k[..] == k[..] && model.m[..] == m[..], "{kind:?}");
+        assert!(model.k()[..] == k[..] && model.m()[..] == m[..], "{kind:?}");
     }
 }
 
@@ -113,7 +113,7 @@ fn partial_grids_assemble_each_cut_element_as_integrated_alone() {
         assert!(cut_elements > 100, "{cut_elements} cut elements");
         let scale = k.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
         let dk = model
-            .k
+            .k()
             .iter()
             .flatten()
             .zip(k.iter().flatten())
@@ -121,7 +121,7 @@ fn partial_grids_assemble_each_cut_element_as_integrated_alone() {
         assert!(dk < 1e-13 * scale, "{kind:?}: K off by {dk} of {scale}");
         let scale = m.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         let dm = model
-            .m
+            .m()
             .iter()
             .zip(&m)
             .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
@@ -147,9 +147,9 @@ fn hex27x2_is_hex27_on_the_grid_of_blocks() {
         (blocks.grid_dims(), blocks.cell_dims()),
         ([6, 4, 8], [3, 2, 4])
     );
-    let twice: Vec<_> = hex27.k.iter().map(|b| b.map(|v| 2.0 * v)).collect();
-    let eight: Vec<_> = hex27.m.iter().map(|v| 8.0 * v).collect();
-    assert!(blocks.k[..] == twice[..] && blocks.m[..] == eight[..]);
+    let twice: Vec<_> = hex27.k().iter().map(|b| b.map(|v| 2.0 * v)).collect();
+    let eight: Vec<_> = hex27.m().iter().map(|v| 8.0 * v).collect();
+    assert!(blocks.k()[..] == twice[..] && blocks.m()[..] == eight[..]);
     // Node positions in voxels: the block's far corner is 2 voxels out.
     let far = (0..blocks.nodes())
         .map(|n| blocks.node_position(n))
@@ -169,12 +169,16 @@ fn hex27x2_is_hex27_on_the_grid_of_blocks() {
     }
     let blocks = FemModel::assemble(&fine, ElementKind::Hex27Blocks, NU).unwrap();
     let hex27 = FemModel::assemble(&coarse, ElementKind::Hex27, NU).unwrap();
-    let scale = hex27.k.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    for (a, b) in blocks.k.iter().flatten().zip(hex27.k.iter().flatten()) {
+    let scale = hex27
+        .k()
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in blocks.k().iter().flatten().zip(hex27.k().iter().flatten()) {
         assert!((a - 2.0 * b).abs() < 1e-12 * 2.0 * scale, "{a} vs 2 x {b}");
     }
-    let scale = hex27.m.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    for (a, b) in blocks.m.iter().zip(&hex27.m) {
+    let scale = hex27.m().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (a, b) in blocks.m().iter().zip(hex27.m()) {
         assert!((a - 8.0 * b).abs() < 1e-12 * 8.0 * scale, "{a} vs 8 x {b}");
     }
 }

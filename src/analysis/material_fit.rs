@@ -387,7 +387,7 @@ fn model_at(
     let (k_lo, k_hi) = (reassemble(lo)?, reassemble(hi)?);
     let mut y = vec![0.0; basis.model.dofs()];
     let mut quad = |k: &FemModel, x: &[f64]| {
-        sparse::spmv(&k.pattern, &k.k, x, &mut y);
+        sparse::spmv(&k.pattern, k.k(), x, &mut y);
         x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>()
     };
     let slopes = (0..lambdas.len())

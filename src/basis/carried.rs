@@ -107,7 +107,9 @@ impl ModeBasis {
     /// (`tests/warm_start.rs`), without the dense product that forms the vectors. Its
     /// `solution.vectors` has no columns (nothing but a strike reads a carried answer's
     /// vectors: it is never the start of another), except where the factors are wider than
-    /// a strike's buffer, when they are formed as by [`ModeBasis::carried_ritz`].
+    /// a strike's buffer, when they are formed as by [`ModeBasis::carried_ritz`]. Its model
+    /// holds `K` and `M` only near the edit ([`FemModel::assemble_near_edit`]; the whole
+    /// model where the answer needs more, [`crate::eigen::EigenError::RowsNotHeld`]).
     pub fn carried_ritz_factored(
         grid: &VoxelGrid,
         element: ElementKind,
@@ -133,5 +135,56 @@ impl ModeBasis {
     /// Whether the vectors are kept as factors ([`ModeBasis::carried_ritz_factored`]).
     pub fn is_factored(&self) -> bool {
         self.factored.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eigen::{EigenOptions, ModeCount, SolverKind};
+
+    #[test]
+    fn a_carried_answer_reads_k_and_m_only_near_the_edit() {
+        // The engine's carried answer assembles only the rows of `K` and `M` near the stroke
+        // (`FemModel::assemble_near_edit`); the others keep what the kept buffer held: NaN
+        // here. Any of them read would turn its eigenvalues NaN or move them. The truth is
+        // the formed answer on the whole model: the same eigenvalues to 1e-10, as
+        // `tests/warm_start.rs` bounds the factored answer (rounding of sums in another
+        // order, 1e-11 measured).
+        let kind = ElementKind::Hex27Blocks;
+        let grid = crate::fem::test_grid("cup:d=12,h=12,wall=1");
+        let options = EigenOptions {
+            count: ModeCount::First(20),
+            ..Default::default()
+        };
+        let before =
+            Arc::new(ModeBasis::solve(&grid, kind, 0.3, SolverKind::Auto, &options).unwrap());
+        before.exact_grams().expect("one part");
+        // A voxel added on the rim.
+        let d = grid.dims();
+        let (x, y) = (0..d[0])
+            .flat_map(|x| (0..d[1]).map(move |y| (x, y)))
+            .find(|&(x, y)| grid.get(x as isize, y as isize, d[2] as isize - 1))
+            .expect("a rim voxel");
+        let mut edited = grid.clone();
+        edited.set(
+            x,
+            y + 1,
+            d[2] - 1,
+            !grid.get(x as isize, y as isize + 1, d[2] as isize - 1),
+        );
+        let formed = ModeBasis::carried_ritz(&edited, kind, 0.3, 20, &before, None)
+            .unwrap()
+            .unwrap();
+        crate::buffer::poison_kept(formed.model.k().len());
+        let factored = ModeBasis::carried_ritz_factored(&edited, kind, 0.3, 20, &before, None)
+            .unwrap()
+            .unwrap();
+        assert!(!factored.model.is_whole() && factored.is_factored());
+        let (a, b) = (&factored.solution.eigenvalues, &formed.solution.eigenvalues);
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-10 * y.abs(), "{x} against {y}");
+        }
     }
 }

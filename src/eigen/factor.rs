@@ -87,10 +87,10 @@ impl ShiftedCholesky {
         let nodes = ordering::fill_reducing_for(model);
         stop.check()?;
         let kept = (model.pattern.col.len() <= MAX_KEPT_BLOCKS).then_some(&KEPT);
-        let mass = BlockMass::Scalar(&model.m);
+        let mass = BlockMass::Scalar(model.m());
         Self::factor(
             &model.pattern,
-            &model.k,
+            model.k(),
             mass,
             &[],
             shift,
@@ -440,8 +440,8 @@ mod tests {
         let factor = |m: &FemModel, nodes: &[usize], shift: f64, kept| {
             ShiftedCholesky::factor(
                 &m.pattern,
-                &m.k,
-                BlockMass::Scalar(&m.m),
+                m.k(),
+                BlockMass::Scalar(m.m()),
                 &[],
                 shift,
                 nodes,

@@ -140,8 +140,8 @@ impl Multigrid {
             .map(|n| model.node_lattice_coords(n))
             .collect();
         // Level matrices are K and M until tau is known (from the coarsest level).
-        let mut fine_a = zeroed(model.k.len());
-        fine_a.copy_from_slice(&model.k);
+        let mut fine_a = zeroed(model.k().len());
+        fine_a.copy_from_slice(model.k());
         let mut levels = vec![Level::new(
             model.pattern.clone(),
             fine_a,
@@ -179,7 +179,7 @@ impl Multigrid {
             m: coarse_m,
         };
         for (i, level) in levels.iter_mut().enumerate() {
-            let m = if i == 0 { &model.m } else { &masses[i - 1] };
+            let m = if i == 0 { model.m() } else { &masses[i - 1] };
             for (a, &mb) in level.a.iter_mut().zip(m) {
                 for c in 0..3 {
                     a[4 * c] += tau * mb;
@@ -523,8 +523,14 @@ mod tests {
         }
         let fine = mg.prolong_from_coarsest(&rot, 1);
         let mut kf = vec![0.0; fine.len()];
-        sparse::spmm(&model.pattern, &model.k, &fine, &mut kf, RowBlock::dense(1));
-        let scale = sparse::norm_inf(&model.pattern, &model.k)
+        sparse::spmm(
+            &model.pattern,
+            model.k(),
+            &fine,
+            &mut kf,
+            RowBlock::dense(1),
+        );
+        let scale = sparse::norm_inf(&model.pattern, model.k())
             * fine.iter().map(|v| v.abs()).fold(0.0, f64::max);
         assert!(kf.iter().all(|v| v.abs() < 1e-12 * scale));
         // Galerkin identity on a random coarse vector: x^T Kc y = (P x)^T K (P y).
@@ -537,7 +543,7 @@ mod tests {
             mg.prolong_from_coarsest(&x, 1),
             mg.prolong_from_coarsest(&y, 1),
         );
-        sparse::spmm(&model.pattern, &model.k, &py, &mut kf, RowBlock::dense(1));
+        sparse::spmm(&model.pattern, model.k(), &py, &mut kf, RowBlock::dense(1));
         let rhs: f64 = px.iter().zip(&kf).map(|(a, b)| a * b).sum();
         assert!(
             (lhs - rhs).abs() < 1e-10 * rhs.abs().max(1.0),

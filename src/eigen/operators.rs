@@ -51,14 +51,28 @@ pub struct Operators<'a> {
 impl<'a> Operators<'a> {
     /// Views a model's matrices.
     pub fn new(model: &'a FemModel) -> Self {
-        Self::from_parts(&model.pattern, &model.k, &model.m)
+        Self::from_parts(&model.pattern, model.k(), model.m())
     }
 
     /// Views a model's matrices for products and the rigid-mode test only: the infinity norms
     /// (a pass over every block of `K`, 6 ms on a 30k-DOF model) are left `NaN`, for a caller
     /// that reports no residuals (the instant carried answer, [`super::warm::ritz`]).
     pub fn without_norms(model: &'a FemModel) -> Self {
-        Self::parts_without_norms(&model.pattern, &model.k, &model.m)
+        Self::parts_without_norms(&model.pattern, model.k(), model.m())
+    }
+
+    /// [`Self::without_norms`] for a model that may hold `K` and `M` only near an edit
+    /// ([`FemModel::assemble_near_edit`]; its whole traces give the scale): a reader of its
+    /// rows checks [`FemModel::holds_rows`] first ([`super::warm`]).
+    pub(crate) fn held_without_norms(model: &'a FemModel) -> Self {
+        let held = model.rows_held();
+        match held.traces {
+            None => Self::without_norms(model),
+            Some([trace_k, trace_m]) => Operators {
+                scale: trace_k / trace_m,
+                ..Self::unscaled(&model.pattern, held.k, held.m)
+            },
+        }
     }
 
     /// Views `K` and `M` given as node blocks on one pattern.
@@ -73,6 +87,14 @@ impl<'a> Operators<'a> {
     /// [`Self::from_parts`] with the norms left `NaN`.
     fn parts_without_norms(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
         Operators {
+            scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
+            ..Self::unscaled(p, k, m)
+        }
+    }
+
+    /// [`Self::parts_without_norms`] with the scale left `NaN` too.
+    fn unscaled(p: &'a BlockPattern, k: &'a [[f64; 9]], m: &'a [f64]) -> Self {
+        Operators {
             pattern: p,
             k,
             m,
@@ -81,7 +103,7 @@ impl<'a> Operators<'a> {
             absent: &[],
             k_norm: f64::NAN,
             m_norm: f64::NAN,
-            scale: sparse::trace(p, k) / sparse::mass_trace(p, m),
+            scale: f64::NAN,
         }
     }
 

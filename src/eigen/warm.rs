@@ -198,8 +198,10 @@ fn ritz_with(
     kept: Option<&ExactGrams>,
 ) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
     let t0 = Instant::now();
-    // No norms: this answer reports no residuals.
-    let ops = Operators::without_norms(next);
+    // No norms: this answer reports no residuals. `next` may hold `K` and `M` only near the
+    // edit (`FemModel::assemble_near_edit`): the local path below checks that it holds every
+    // row it reads, and the whole path needs a whole model.
+    let ops = Operators::held_without_norms(next);
     let columns = previous_columns(previous_solution, RITZ_GUARDS);
     let cc = columns.len();
     let n = ops.dofs();
@@ -241,6 +243,9 @@ fn ritz_with(
         });
     let local = moved.as_ref().zip(touched.as_ref()).and_then(|(mv, t)| {
         let read = grams::rows_read(next, rows_at, t);
+        if !next.holds_rows(&read) {
+            return None;
+        }
         let mut slot = vec![u32::MAX; next.nodes()];
         (read.iter().enumerate()).for_each(|(i, &v)| slot[v] = i as u32);
         let rows = block_rows_on(next, &columns, &sources, fields, centre, &read);
@@ -282,6 +287,7 @@ fn ritz_with(
     let mut whole = None;
     let grams = match local {
         Some(g) => g,
+        None if !next.is_whole() => return Err(EigenError::RowsNotHeld),
         None => {
             let (x_rows, rigid) = whole.insert(whole_block());
             grams::grams(
@@ -496,6 +502,15 @@ impl Patch {
             rows[(3 * at[r / 3] + r % 3, j)]
         })
     }
+}
+
+/// Element cells around an edit whose rows of `K` and `M` a carried answer reads
+/// ([`ritz_factored`]): the wide patch's ([`WIDE_PATCH_RADIUS`] voxels, in cells) and one
+/// more, for the rows next to the patch's that its Gram sums read (`grams::rows_read`). What
+/// the engine's carried answer assembles ([`FemModel::assemble_near_edit`]).
+pub fn rows_read_radius_cells(kind: crate::fem::ElementKind) -> usize {
+    let block = kind.voxels_per_element() as i64;
+    ((WIDE_PATCH_RADIUS + block - 1) / block + 1) as usize
 }
 
 /// The nodes of `next` on the elements within `radius` cells (Chebyshev distance) of an

@@ -16,15 +16,16 @@ use crate::shape::{lattice_coords, lattice_index, FillLookup, ShapeError, VoxelF
 impl FemModel {
     /// [`FemModel::assemble_cached`], with the cut elements' orbits shared or each cut
     /// element integrated on its own (`share_orbits`, for the tests' reference), and the rows
-    /// away from an edit copied from `previous` where it is a model of the same grid before
-    /// a local edit ([`reuse`]; else every row is summed).
+    /// away from an edit copied from `after`'s model where it is a model of the same grid
+    /// before a local edit ([`reuse`]; else every row is summed), or not held at all beyond
+    /// its radius ([`After::held_radius`]).
     pub(super) fn assemble_with(
         grid: &VoxelGrid,
         kind: ElementKind,
         poisson_ratio: f64,
         mut cache: Option<&mut ElementCache>,
         share_orbits: bool,
-        previous: Option<&FemModel>,
+        after: Option<After<'_>>,
     ) -> Result<Self, ShapeError> {
         grid.check_solvable()?;
         let block = kind.voxels_per_element();
@@ -103,22 +104,27 @@ impl FemModel {
             FillLookup::unindexed(grid)
         };
         // The rows an edit leaves as they were, where an earlier model has them.
-        let reuse = previous.and_then(|previous| {
-            let states = (voxels.iter())
-                .map(|&v| block_state(&voxel_fills, v, block))
-                .collect();
-            let mesh = reuse::Mesh {
-                kind,
-                poisson_ratio,
-                voxel_dims: fine_dims,
-                lattice,
-                voxels: &voxels,
-                node_lattice: &node_lattice,
-                lattice_node: &lattice_node,
-                pattern: &pattern,
-            };
-            reuse::Reuse::plan(previous, &mesh, states)
-        });
+        let reuse = after.and_then(
+            |After {
+                 previous,
+                 held_radius,
+             }| {
+                let states = (voxels.iter())
+                    .map(|&v| block_state(&voxel_fills, v, block))
+                    .collect();
+                let mesh = reuse::Mesh {
+                    kind,
+                    poisson_ratio,
+                    voxel_dims: fine_dims,
+                    lattice,
+                    voxels: &voxels,
+                    node_lattice: &node_lattice,
+                    lattice_node: &lattice_node,
+                    pattern: &pattern,
+                };
+                reuse::Reuse::plan(previous, &mesh, states, held_radius)
+            },
+        );
         // `K` and `M` in kept buffers where the pool has them: after an edit the untouched
         // rows are copied over and only the summed ones cleared, else every entry is.
         let blocks = pattern.col.len();
@@ -318,6 +324,11 @@ impl FemModel {
         if let (None, Some(cache)) = (&reuse, cache) {
             cache.finish();
         }
+        let near_edit = reuse.as_ref().and_then(|reuse| {
+            let held = reuse.held()?.to_vec();
+            let traces = reuse.traces(&pattern, &k, &m);
+            Some(super::NearEdit { held, traces })
+        });
         Ok(FemModel {
             kind,
             poisson_ratio,
@@ -331,8 +342,19 @@ impl FemModel {
             pattern,
             k,
             m,
+            near_edit,
         })
     }
+}
+
+/// The model an assembly after an edit starts from ([`FemModel::assemble_with`]).
+pub(super) struct After<'a> {
+    /// The model before the edit (of the same grid size, element and Poisson's ratio, or it
+    /// is not used).
+    pub previous: &'a FemModel,
+    /// `None`: every row of the new model is held (copied or summed). `Some(r)`: only the rows
+    /// of the nodes within `r` cells of a changed cell ([`FemModel::assemble_near_edit`]).
+    pub held_radius: Option<usize>,
 }
 
 /// Cut elements waiting to be integrated together ([`cut::CutElement::matrices_batch`]).

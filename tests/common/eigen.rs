@@ -21,16 +21,16 @@ pub fn options(count: ModeCount) -> EigenOptions {
 /// `max |V^T M V - I|` from the returned vectors alone.
 pub fn identities(model: &FemModel, sol: &EigenSolution) -> (f64, f64) {
     let n = model.dofs();
-    let k_norm = sparse::norm_inf(&model.pattern, &model.k);
-    let m_norm = sparse::mass_norm_inf(&model.pattern, &model.m);
+    let k_norm = sparse::norm_inf(&model.pattern, model.k());
+    let m_norm = sparse::mass_norm_inf(&model.pattern, model.m());
     let cols = sol.vectors.ncols();
     let mut mv = Vec::with_capacity(cols);
     let mut worst_res = 0.0f64;
     for j in 0..cols {
         let v: Vec<f64> = (0..n).map(|i| sol.vectors[(i, j)]).collect();
         let (mut kv, mut m) = (vec![0.0; n], vec![0.0; n]);
-        sparse::spmm(&model.pattern, &model.k, &v, &mut kv, RowBlock::dense(1));
-        sparse::spmm_mass(&model.pattern, &model.m, &v, &mut m, RowBlock::dense(1));
+        sparse::spmm(&model.pattern, model.k(), &v, &mut kv, RowBlock::dense(1));
+        sparse::spmm_mass(&model.pattern, model.m(), &v, &mut m, RowBlock::dense(1));
         let l = sol.eigenvalues[j];
         let r = kv
             .iter()

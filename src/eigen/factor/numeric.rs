@@ -356,8 +356,8 @@ mod tests {
     ) -> (SparseColMat<usize, f64>, SymbolicCholesky<usize>) {
         let nodes = ordering::nested_dissection(model);
         let csc = |side| {
-            let mass = BlockMass::Scalar(&model.m);
-            permuted_shifted_csc(&model.pattern, &model.k, mass, shift, &nodes, side)
+            let mass = BlockMass::Scalar(model.m());
+            permuted_shifted_csc(&model.pattern, model.k(), mass, shift, &nodes, side)
         };
         let upper = csc(Side::Upper);
         let symbolic = ordering::supernodal_symbolic(upper.symbolic(), SymmetricOrdering::Identity)

@@ -56,10 +56,10 @@ impl Mirrors {
         for a in 0..nodes {
             let d = p.find(a, a as u32).expect("diagonal block");
             k_max = k_max
-                .max(model.k[d][0])
-                .max(model.k[d][4])
-                .max(model.k[d][8]);
-            m_max = m_max.max(model.m[d]);
+                .max(model.k()[d][0])
+                .max(model.k()[d][4])
+                .max(model.k()[d][8]);
+            m_max = m_max.max(model.m()[d]);
         }
         let mut axes = 0u8;
         let mut image = vec![Vec::new(); 3];
@@ -259,7 +259,7 @@ impl Mirrors {
                 let (sign, there) = (&signs[usize::from(self.from_rep[q])], &has[orbit]);
                 // Column d's factor: w sigma_q(d) where the orbit has component d, else 0.
                 let s: [f64; 3] = std::array::from_fn(|d| (w * sign[d]) * there[d]);
-                let (kb, kr) = (&model.k[blk], &mut k[at]);
+                let (kb, kr) = (&model.k()[blk], &mut k[at]);
                 for c in 0..3 {
                     for d in 0..3 {
                         kr[3 * c + d] += (s[d] * own[c]) * kb[3 * c + d];
@@ -267,14 +267,14 @@ impl Mirrors {
                 }
                 let mr = &mut m[at];
                 for d in 0..3 {
-                    mr[d] += (s[d] * own[d]) * model.m[blk];
+                    mr[d] += (s[d] * own[d]) * model.m()[blk];
                 }
             }
             // An absent DOF: a decoupled row with the whole model's stiffness and no mass (an
             // infinite eigenvalue, which shift-invert never approaches).
             let (diag, own_blk) = plan.diagonal[o];
             for c in (0..3).filter(|&c| own[c] == 0.0) {
-                k[diag as usize][4 * c] = model.k[own_blk as usize][4 * c];
+                k[diag as usize][4 * c] = model.k()[own_blk as usize][4 * c];
             }
         }
         let absent = (0..orbits)

@@ -233,7 +233,7 @@ pub(super) fn grams(
     let touched_at: Vec<usize> = touched.iter().map(|&v| place[v] as usize).collect();
     let new_side = |y: &Mat<f64>| local_gram(x, touched, y, &touched_at);
     let pm = previous.model;
-    let old_blocks = Blocks::of(&pm.pattern, &pm.k, &pm.m);
+    let old_blocks = Blocks::of(&pm.pattern, pm.k(), pm.m());
     let cc = w - fields;
     // The previous rows lead with the rigid fields where their kept columns are updated too
     // (about the same centre, in the previous mesh's positions).

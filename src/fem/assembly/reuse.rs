@@ -22,6 +22,14 @@
 //! nodes in lattice order, so the row is the previous row's blocks in the same order: one
 //! copy. The plan checks each untouched row's length against the previous one and gives up
 //! (a full assembly) on any mismatch.
+//!
+//! **Rows not held.** The engine's carried answer reads `K` and `M` only within a few cells
+//! of the stroke ([`crate::eigen::warm::rows_read_radius_cells`]), and nothing reads its
+//! model's matrices after it. [`FemModel::assemble_near_edit`] copies only the untouched rows
+//! within that radius and leaves the rest of the buffers as they were (the copy was 6-10 ms of
+//! the ceramic cup's answer, a 35 MB `K`). Such a model records which rows it holds and the
+//! whole matrices' traces ([`Reuse::traces`], a row not held read in the previous model), and
+//! refuses [`FemModel::k`] and [`FemModel::m`]; a later edit assembles in full from it.
 
 use crate::fem::sparse::{BlockPattern, Blocks, MassBlocks};
 use crate::fem::{ElementKind, FemModel};
@@ -54,15 +62,27 @@ pub(super) struct Reuse<'a> {
     touched: Vec<bool>,
     /// The new mesh's node numbers by lattice index (to find an element's touched nodes).
     node_lattice: &'a [usize],
+    /// Per node of the new mesh: whether its rows are held at all (`None`: every row is).
+    /// A model assembled near an edit ([`FemModel::assemble_near_edit`]) copies only the
+    /// untouched rows within its radius.
+    held: Option<Vec<bool>>,
 }
 
 impl<'a> Reuse<'a> {
     /// The plan for `mesh` after `previous`, the element `states` ([`Reuse::state`]) computed
-    /// by the caller; `None` where the whole model must be summed.
-    pub fn plan(previous: &'a FemModel, mesh: &Mesh<'a>, states: Vec<(bool, u64)>) -> Option<Self> {
+    /// by the caller, every row held or (`held_radius`) only those of the nodes within that
+    /// many cells of a changed one; `None` where the whole model must be summed (a previous
+    /// model that is not whole among the reasons: its rows are not all there to copy).
+    pub fn plan(
+        previous: &'a FemModel,
+        mesh: &Mesh<'a>,
+        states: Vec<(bool, u64)>,
+        held_radius: Option<usize>,
+    ) -> Option<Self> {
         let same_integrand = previous.kind == mesh.kind
             && previous.poisson_ratio.to_bits() == mesh.poisson_ratio.to_bits();
         if !same_integrand
+            || !previous.is_whole()
             || previous.voxel_dims != mesh.voxel_dims
             || previous.lattice != mesh.lattice
             || previous.cell_fills.len() != previous.voxels.len()
@@ -91,7 +111,8 @@ impl<'a> Reuse<'a> {
         if changed.len() as f64 > MAX_CHANGED_SHARE * mesh.voxels.len() as f64 {
             return None;
         }
-        let touched = touched_nodes(mesh, cells, &changed);
+        let touched = nodes_within(mesh, cells, &changed, 1);
+        let held = held_radius.map(|r| nodes_within(mesh, cells, &changed, r.max(1)));
         // Every untouched row lines up with the previous model's.
         for (a, _) in touched.iter().enumerate().filter(|(_, &t)| !t) {
             let o = previous.lattice_node[mesh.node_lattice[a]];
@@ -110,7 +131,13 @@ impl<'a> Reuse<'a> {
             states,
             touched,
             node_lattice: mesh.node_lattice,
+            held,
         })
+    }
+
+    /// Per node whether its rows are held (`None`: every row), for the model.
+    pub fn held(&self) -> Option<&[bool]> {
+        self.held.as_deref()
     }
 
     /// Element `e`'s `(full, fingerprint)`: [`super::block_state`] of its cell.
@@ -128,12 +155,15 @@ impl<'a> Reuse<'a> {
     }
 
     /// Fills `k` and `m` (on `pattern`, buffers of unspecified values) before the element
-    /// loop: every untouched row copied from the previous model, every touched row zeroed for
-    /// the loop to sum into.
+    /// loop: every untouched row that is held copied from the previous model, every touched
+    /// row zeroed for the loop to sum into. The rows not held are left as they were.
     pub fn prefill(&self, pattern: &BlockPattern, k: &mut Blocks, m: &mut MassBlocks) {
         let previous = self.previous;
         for (a, &touched) in self.touched.iter().enumerate() {
             let to = pattern.row_ptr[a]..pattern.row_ptr[a + 1];
+            if self.held.as_ref().is_some_and(|h| !h[a]) {
+                continue;
+            }
             if touched {
                 k[to.clone()].fill([0.0; 9]);
                 m[to].fill(0.0);
@@ -145,17 +175,43 @@ impl<'a> Reuse<'a> {
             }
         }
     }
+
+    /// `trace K` and `trace M` of the new model once the element loop has summed `k` and `m`:
+    /// a row not held is the previous model's, read there. The same sums in the same order
+    /// as [`crate::fem::sparse::trace`] over the whole model.
+    pub fn traces(&self, pattern: &BlockPattern, k: &Blocks, m: &MassBlocks) -> [f64; 2] {
+        let previous = self.previous;
+        let (mut trace_k, mut trace_m) = (0.0, 0.0);
+        for a in 0..pattern.nodes() {
+            let (kb, mb) = if self.held.as_ref().is_none_or(|h| h[a]) {
+                let b = pattern.find(a, a as u32).expect("diagonal block");
+                (&k[b], m[b])
+            } else {
+                let o = previous.lattice_node[self.node_lattice[a]] as usize;
+                let b = (previous.pattern.find(o, o as u32)).expect("diagonal block");
+                (&previous.k[b], previous.m[b])
+            };
+            trace_k += kb[0] + kb[4] + kb[8];
+            trace_m += 3.0 * mb;
+        }
+        [trace_k, trace_m]
+    }
 }
 
-/// Per node of `mesh`: whether it lies on a cell within one cell (Chebyshev) of a `changed`
-/// one (cells of a grid of `cells` per axis).
-fn touched_nodes(mesh: &Mesh<'_>, cells: [usize; 3], changed: &[[usize; 3]]) -> Vec<bool> {
+/// Per node of `mesh`: whether it lies on a cell within `radius` cells (Chebyshev) of a
+/// `changed` one (cells of a grid of `cells` per axis).
+fn nodes_within(
+    mesh: &Mesh<'_>,
+    cells: [usize; 3],
+    changed: &[[usize; 3]],
+    radius: usize,
+) -> Vec<bool> {
     let p = mesh.kind.order();
     let mut touched = vec![false; mesh.node_lattice.len()];
     for c in changed {
-        // The lattice points of the cells from c - 1 to c + 1 (clipped to the grid).
-        let lo = c.map(|x| p * x.saturating_sub(1));
-        let hi = [0, 1, 2].map(|a| p * (c[a] + 2).min(cells[a]));
+        // The lattice points of the cells from c - radius to c + radius (clipped to the grid).
+        let lo = c.map(|x| p * x.saturating_sub(radius));
+        let hi = [0, 1, 2].map(|a| p * (c[a] + 1 + radius).min(cells[a]));
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
@@ -196,9 +252,13 @@ mod tests {
         .unwrap()
     }
 
+    /// The bits of each value (NaN-safe equality).
+    fn bits(x: &[f64]) -> Vec<u64> {
+        x.iter().map(|v| v.to_bits()).collect()
+    }
+
     /// Whether two models are the same to the bit (numbering, pattern, `K`, `M`, fills).
     fn identical(a: &FemModel, b: &FemModel) -> bool {
-        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         a.node_lattice == b.node_lattice
             && a.elements == b.elements
             && a.cell_fills == b.cell_fills
@@ -291,6 +351,42 @@ mod tests {
                     identical(&after, &full),
                     "{kind}, {edit}: not the same bits"
                 );
+                // Near the edit only: the same rows where held, the whole model's traces, and
+                // (a stroke) rows far from it not held. NaNs kept again: a held row neither
+                // copied nor cleared would show.
+                crate::buffer::poison_kept(2 * previous.k.len());
+                let mut near_cache = cache.clone();
+                let near = FemModel::assemble_near_edit(
+                    &edited,
+                    kind,
+                    0.24,
+                    &previous,
+                    Some(&mut near_cache),
+                    2,
+                )
+                .unwrap();
+                let held = near.near_edit.as_ref().map(|n| &n.held);
+                assert_eq!(held.is_none(), edit == "a third removed", "{kind}, {edit}");
+                if let Some(held) = held {
+                    assert!(held.iter().any(|&h| !h), "{kind}, {edit}: every row held");
+                    let p = &full.pattern;
+                    assert_eq!(near.pattern.col, p.col);
+                    for a in (0..full.nodes()).filter(|&a| held[a]) {
+                        let r = p.row_ptr[a]..p.row_ptr[a + 1];
+                        assert!(
+                            bits(near.k[r.clone()].as_flattened())
+                                == bits(full.k[r.clone()].as_flattened())
+                                && bits(&near.m[r.clone()]) == bits(&full.m[r]),
+                            "{kind}, {edit}: row {a}"
+                        );
+                    }
+                    let traces = near.rows_held().traces.expect("traces");
+                    let whole_traces = [
+                        crate::fem::sparse::trace(p, &full.k),
+                        crate::fem::sparse::mass_trace(p, &full.m),
+                    ];
+                    assert_eq!(bits(&traces), bits(&whole_traces), "{kind}, {edit}");
+                }
                 let (read, all) = (partial.stats(), whole.stats());
                 let looked_up = |s: crate::fem::cache::CacheStats| s.hits + s.misses;
                 if edit == "a third removed" {
@@ -305,6 +401,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_model_held_near_an_edit_refuses_to_be_read_whole() {
+        // `K` of a model that holds only the rows near an edit is not there to read: reading
+        // it whole panics with what to do instead, and a later edit assembles in full from it
+        // (no rows to copy).
+        let kind = ElementKind::Hex27Blocks;
+        let grid = bowl();
+        let previous = FemModel::assemble(&grid, kind, 0.24).unwrap();
+        let (_, edited) = edits(&grid).swap_remove(2);
+        let near = FemModel::assemble_near_edit(&edited, kind, 0.24, &previous, None, 2).unwrap();
+        assert!(!near.is_whole());
+        let read = std::panic::catch_unwind(|| near.k().len());
+        let message = read.expect_err("a panic");
+        let text = message.downcast_ref::<&str>().copied().unwrap_or_default();
+        assert!(text.contains("only near an edit"), "{text}");
+        let again = FemModel::assemble_after_edit(&grid, kind, 0.24, &near, None).unwrap();
+        assert!(again.is_whole() && identical(&again, &previous));
     }
 
     #[test]
