@@ -56,22 +56,25 @@ impl<'a> Operators<'a> {
 
     /// Views a model's matrices for products and the rigid-mode test only: the infinity norms
     /// (a pass over every block of `K`, 6 ms on a 30k-DOF model) are left `NaN`, for a caller
-    /// that reports no residuals (the instant carried answer, [`super::warm::ritz`]).
+    /// that reports no residuals (the instant carried answer, [`super::warm::ritz`]). The
+    /// scale is the model's kept traces' ([`FemModel::traces`]).
     pub fn without_norms(model: &'a FemModel) -> Self {
-        Self::parts_without_norms(&model.pattern, model.k(), model.m())
+        let [trace_k, trace_m] = model.traces();
+        Operators {
+            scale: trace_k / trace_m,
+            ..Self::unscaled(&model.pattern, model.k(), model.m())
+        }
     }
 
     /// [`Self::without_norms`] for a model that may hold `K` and `M` only near an edit
-    /// ([`FemModel::assemble_near_edit`]; its whole traces give the scale): a reader of its
-    /// rows checks [`FemModel::holds_rows`] first ([`super::warm`]).
+    /// ([`FemModel::assemble_near_edit`]): a reader of its rows checks
+    /// [`FemModel::holds_rows`] first ([`super::warm`]).
     pub(crate) fn held_without_norms(model: &'a FemModel) -> Self {
         let held = model.rows_held();
-        match held.traces {
-            None => Self::without_norms(model),
-            Some([trace_k, trace_m]) => Operators {
-                scale: trace_k / trace_m,
-                ..Self::unscaled(&model.pattern, held.k, held.m)
-            },
+        let [trace_k, trace_m] = model.traces();
+        Operators {
+            scale: trace_k / trace_m,
+            ..Self::unscaled(&model.pattern, held.k, held.m)
         }
     }
 

@@ -324,10 +324,11 @@ impl FemModel {
         if let (None, Some(cache)) = (&reuse, cache) {
             cache.finish();
         }
+        let traces = std::sync::OnceLock::new();
         let near_edit = reuse.as_ref().and_then(|reuse| {
             let held = reuse.held()?.to_vec();
-            let traces = reuse.traces(&pattern, &k, &m);
-            Some(super::NearEdit { held, traces })
+            let _ = traces.set(reuse.traces(&pattern, &k, &m));
+            Some(super::NearEdit { held })
         });
         Ok(FemModel {
             kind,
@@ -343,6 +344,7 @@ impl FemModel {
             k,
             m,
             near_edit,
+            traces,
         })
     }
 }
