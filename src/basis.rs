@@ -282,7 +282,7 @@ impl ModeBasis {
         (element, poisson_ratio): (ElementKind, f64),
         count: usize,
         from: carried::CarriedFrom,
-        cache: Option<&mut ElementCache>,
+        mut cache: Option<&mut ElementCache>,
     ) -> Option<Result<Self, BasisError>> {
         let previous = from.basis();
         let old = &previous.model;
@@ -295,7 +295,6 @@ impl ModeBasis {
             carried::CarriedFrom::Formed(_) => None,
             carried::CarriedFrom::Factored(_) => Some(eigen::warm::rows_read_radius_cells(element)),
         };
-        let mut cache = cache;
         let assembled = match near {
             None => FemModel::assemble_after_edit(
                 grid,

@@ -74,15 +74,6 @@ pub(crate) struct NearEdit {
     pub held: Vec<bool>,
 }
 
-/// A model's `K` and `M` as its rows are held: every row, or only those near an edit
-/// ([`FemModel::assemble_near_edit`]), which a reader checks ([`FemModel::holds_rows`]).
-pub(crate) struct RowsHeld<'a> {
-    /// Stiffness blocks on the model's pattern; outside `held`, unspecified values.
-    pub k: &'a [[f64; 9]],
-    /// Mass blocks on the model's pattern; outside `held`, unspecified values.
-    pub m: &'a [f64],
-}
-
 /// `K` and `M` go back to the process's kept buffers ([`crate::buffer`]): a sculpting session
 /// assembles a model per stroke, and the next one's matrices then reuse mapped pages instead
 /// of faulting in fresh ones (the kernel zeroing those was 13 % of the ceramic cup's carried
@@ -198,13 +189,11 @@ impl FemModel {
         self.near_edit.is_none()
     }
 
-    /// `K` and `M` as held: the reader near an edit checks [`FemModel::holds_rows`] for the
-    /// rows it reads ([`crate::eigen::warm`]).
-    pub(crate) fn rows_held(&self) -> RowsHeld<'_> {
-        RowsHeld {
-            k: &self.k,
-            m: &self.m,
-        }
+    /// `K` and `M` as held: every row, or for a model near an edit only the rows of the nodes
+    /// [`FemModel::holds_rows`] says, the others unspecified (the reader near an edit checks,
+    /// [`crate::eigen::warm`]).
+    pub(crate) fn rows_held(&self) -> (&Blocks, &sparse::MassBlocks) {
+        (&self.k, &self.m)
     }
 
     /// `trace K` and `trace M`, whose ratio is the scale of the spectrum

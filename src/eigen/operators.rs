@@ -70,11 +70,11 @@ impl<'a> Operators<'a> {
     /// ([`FemModel::assemble_near_edit`]): a reader of its rows checks
     /// [`FemModel::holds_rows`] first ([`super::warm`]).
     pub(crate) fn held_without_norms(model: &'a FemModel) -> Self {
-        let held = model.rows_held();
+        let (k, m) = model.rows_held();
         let [trace_k, trace_m] = model.traces();
         Operators {
             scale: trace_k / trace_m,
-            ..Self::unscaled(&model.pattern, held.k, held.m)
+            ..Self::unscaled(&model.pattern, k, m)
         }
     }
 

@@ -152,9 +152,9 @@ fn approximate_bytes(b: &ModeBasis) -> usize {
         .iter()
         .map(|v| v.nrows() * v.ncols() * 8)
         .sum::<usize>();
-    let held = m.rows_held();
-    held.k.len() * 72
-        + held.m.len() * 8
+    let (k, mass) = m.rows_held();
+    k.len() * 72
+        + mass.len() * 8
         + m.pattern.col.len() * 4
         + m.pattern.row_ptr.len() * 8
         + m.elements.len() * 4

@@ -28,8 +28,8 @@
 //! model's matrices after it. [`FemModel::assemble_near_edit`] copies only the untouched rows
 //! within that radius and leaves the rest of the buffers as they were (the copy was 6-10 ms of
 //! the ceramic cup's answer, a 35 MB `K`). Such a model records which rows it holds and the
-//! whole matrices' traces ([`Reuse::traces`], a row not held read in the previous model), and
-//! refuses [`FemModel::k`] and [`FemModel::m`]; a later edit assembles in full from it.
+//! whole matrices' traces (the previous model's updated near the edit, [`Reuse::traces`]),
+//! and refuses [`FemModel::k`] and [`FemModel::m`]; a later edit assembles in full from it.
 
 use crate::fem::sparse::{BlockPattern, Blocks, MassBlocks};
 use crate::fem::{ElementKind, FemModel};
