@@ -290,10 +290,16 @@ impl ModeBasis {
             return None;
         }
         let t = std::time::Instant::now();
-        // The factored answer reads `K` and `M` only near the edit: its model holds no more.
+        // The factored answer reads `K` and `M` only near the edit where the previous answer's
+        // whole Gram columns stand for the ones it cannot relate: its model holds no more. (A
+        // shape of several parts has none, and is read whole.)
         let near = match from {
-            carried::CarriedFrom::Formed(_) => None,
-            carried::CarriedFrom::Factored(_) => Some(eigen::warm::rows_read_radius_cells(element)),
+            carried::CarriedFrom::Factored(from)
+                if from.exact_grams().is_some_and(|g| g.fits(&from.solution)) =>
+            {
+                Some(eigen::warm::rows_read_radius_cells(element))
+            }
+            _ => None,
         };
         let assembled = match near {
             None => FemModel::assemble_after_edit(

@@ -187,4 +187,36 @@ mod tests {
             assert!((x - y).abs() <= 1e-10 * y.abs(), "{x} against {y}");
         }
     }
+
+    #[test]
+    fn a_carried_answer_that_reads_beyond_the_edit_assembles_the_whole_model() {
+        // On a small bar a stroke's neighbourhood is over a quarter of the nodes, which the
+        // local Gram sums refuse (`grams::touched_nodes`) although the assembly near the edit
+        // is planned (one changed cell of 32): the answer reads the whole model instead of
+        // rows that are not held, and is the formed answer's (eigenvalues to 1e-10, as above).
+        let kind = ElementKind::Hex27Blocks;
+        let grid = crate::fem::test_grid("bar:l=16,w=4,h=4");
+        let options = EigenOptions {
+            count: ModeCount::First(10),
+            ..Default::default()
+        };
+        let before =
+            Arc::new(ModeBasis::solve(&grid, kind, 0.3, SolverKind::Auto, &options).unwrap());
+        assert!(before.exact_grams().is_some());
+        let mut edited = grid.clone();
+        edited.set(1, 1, 3, false);
+        let formed = ModeBasis::carried_ritz(&edited, kind, 0.3, 10, &before, None)
+            .unwrap()
+            .unwrap();
+        crate::buffer::poison_kept(formed.model.k().len());
+        let factored = ModeBasis::carried_ritz_factored(&edited, kind, 0.3, 10, &before, None)
+            .unwrap()
+            .unwrap();
+        assert!(factored.model.is_whole());
+        let (a, b) = (&factored.solution.eigenvalues, &formed.solution.eigenvalues);
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-10 * y.abs(), "{x} against {y}");
+        }
+    }
 }
