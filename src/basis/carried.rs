@@ -143,49 +143,58 @@ mod tests {
     use super::*;
     use crate::eigen::{EigenOptions, ModeCount, SolverKind};
 
-    #[test]
-    fn a_carried_answer_reads_k_and_m_only_near_the_edit() {
-        // The engine's carried answer assembles only the rows of `K` and `M` near the stroke
-        // (`FemModel::assemble_near_edit`); the others keep what the kept buffer held: NaN
-        // here. Any of them read would turn its eigenvalues NaN or move them. The truth is
-        // the formed answer on the whole model: the same eigenvalues to 1e-10, as
-        // `tests/warm_start.rs` bounds the factored answer (rounding of sums in another
-        // order, 1e-11 measured).
+    /// The factored answer to `edit` of `grid` (hex27x2, the lowest `modes`), made with NaN
+    /// in the kept buffers its model takes, after checking it against the formed answer on
+    /// the whole model: the same eigenvalues to 1e-10, as `tests/warm_start.rs` bounds the
+    /// factored answer (rounding of sums in another order, 1e-11 measured).
+    fn factored_as_formed(
+        spec: &str,
+        modes: usize,
+        edit: impl FnOnce(&mut VoxelGrid),
+    ) -> ModeBasis {
         let kind = ElementKind::Hex27Blocks;
-        let grid = crate::fem::test_grid("cup:d=12,h=12,wall=1");
+        let grid = crate::fem::test_grid(spec);
         let options = EigenOptions {
-            count: ModeCount::First(20),
+            count: ModeCount::First(modes),
             ..Default::default()
         };
         let before =
             Arc::new(ModeBasis::solve(&grid, kind, 0.3, SolverKind::Auto, &options).unwrap());
         before.exact_grams().expect("one part");
-        // A voxel added on the rim.
-        let d = grid.dims();
-        let (x, y) = (0..d[0])
-            .flat_map(|x| (0..d[1]).map(move |y| (x, y)))
-            .find(|&(x, y)| grid.get(x as isize, y as isize, d[2] as isize - 1))
-            .expect("a rim voxel");
-        let mut edited = grid.clone();
-        edited.set(
-            x,
-            y + 1,
-            d[2] - 1,
-            !grid.get(x as isize, y as isize + 1, d[2] as isize - 1),
-        );
-        let formed = ModeBasis::carried_ritz(&edited, kind, 0.3, 20, &before, None)
+        let mut edited = grid;
+        edit(&mut edited);
+        let formed = ModeBasis::carried_ritz(&edited, kind, 0.3, modes, &before, None)
             .unwrap()
             .unwrap();
         crate::buffer::poison_kept(formed.model.k().len());
-        let factored = ModeBasis::carried_ritz_factored(&edited, kind, 0.3, 20, &before, None)
+        let factored = ModeBasis::carried_ritz_factored(&edited, kind, 0.3, modes, &before, None)
             .unwrap()
             .unwrap();
-        assert!(!factored.model.is_whole() && factored.is_factored());
         let (a, b) = (&factored.solution.eigenvalues, &formed.solution.eigenvalues);
         assert_eq!(a.len(), b.len());
         for (x, y) in a.iter().zip(b) {
             assert!((x - y).abs() <= 1e-10 * y.abs(), "{x} against {y}");
         }
+        factored
+    }
+
+    #[test]
+    fn a_carried_answer_reads_k_and_m_only_near_the_edit() {
+        // The engine's carried answer assembles only the rows of `K` and `M` near the stroke
+        // (`FemModel::assemble_near_edit`); the others keep what the kept buffer held: NaN
+        // here. Any of them read would turn its eigenvalues NaN or move them off the formed
+        // answer's. A voxel added on the rim of a cup.
+        let factored = factored_as_formed("cup:d=12,h=12,wall=1", 20, |grid| {
+            let d = grid.dims();
+            let top = d[2] as isize - 1;
+            let (x, y) = (0..d[0])
+                .flat_map(|x| (0..d[1]).map(move |y| (x, y)))
+                .find(|&(x, y)| grid.get(x as isize, y as isize, top))
+                .expect("a rim voxel");
+            let beside = grid.get(x as isize, y as isize + 1, top);
+            grid.set(x, y + 1, d[2] - 1, !beside);
+        });
+        assert!(!factored.model.is_whole() && factored.is_factored());
     }
 
     #[test]
@@ -193,30 +202,8 @@ mod tests {
         // On a small bar a stroke's neighbourhood is over a quarter of the nodes, which the
         // local Gram sums refuse (`grams::touched_nodes`) although the assembly near the edit
         // is planned (one changed cell of 32): the answer reads the whole model instead of
-        // rows that are not held, and is the formed answer's (eigenvalues to 1e-10, as above).
-        let kind = ElementKind::Hex27Blocks;
-        let grid = crate::fem::test_grid("bar:l=16,w=4,h=4");
-        let options = EigenOptions {
-            count: ModeCount::First(10),
-            ..Default::default()
-        };
-        let before =
-            Arc::new(ModeBasis::solve(&grid, kind, 0.3, SolverKind::Auto, &options).unwrap());
-        assert!(before.exact_grams().is_some());
-        let mut edited = grid.clone();
-        edited.set(1, 1, 3, false);
-        let formed = ModeBasis::carried_ritz(&edited, kind, 0.3, 10, &before, None)
-            .unwrap()
-            .unwrap();
-        crate::buffer::poison_kept(formed.model.k().len());
-        let factored = ModeBasis::carried_ritz_factored(&edited, kind, 0.3, 10, &before, None)
-            .unwrap()
-            .unwrap();
+        // rows that are not held, and is the formed answer's.
+        let factored = factored_as_formed("bar:l=16,w=4,h=4", 10, |grid| grid.set(1, 1, 3, false));
         assert!(factored.model.is_whole());
-        let (a, b) = (&factored.solution.eigenvalues, &formed.solution.eigenvalues);
-        assert_eq!(a.len(), b.len());
-        for (x, y) in a.iter().zip(b) {
-            assert!((x - y).abs() <= 1e-10 * y.abs(), "{x} against {y}");
-        }
     }
 }
