@@ -88,6 +88,9 @@ pub struct ModeBasis {
     /// The whole Gram columns the strokes carried from this answer cannot relate
     /// ([`eigen::warm::ExactGrams`]), kept once for them all.
     exact_grams: std::sync::OnceLock<Option<eigen::warm::ExactGrams>>,
+    /// A carried answer that kept to the narrow patch where the wide reach would not
+    /// ([`ModeBasis::carried_widens`]).
+    widens: bool,
 }
 
 /// Why a shape could not be solved.
@@ -293,8 +296,8 @@ impl ModeBasis {
         // The factored answer reads `K` and `M` only near the edit where the previous answer's
         // whole Gram columns stand for the ones it cannot relate: its model holds no more. (A
         // shape of several parts has none, and is read whole.)
-        let near = match from {
-            carried::CarriedFrom::Factored(from)
+        let near = match &from {
+            carried::CarriedFrom::Factored { from, .. }
                 if from.exact_grams().is_some_and(|g| g.fits(&from.solution)) =>
             {
                 Some(eigen::warm::rows_read_radius_cells(element))
@@ -331,19 +334,20 @@ impl ModeBasis {
         let answer = match from {
             carried::CarriedFrom::Formed(_) => {
                 eigen::warm::ritz(&model, old, &previous.solution, offset, count)
-                    .map(|solution| (solution, None))
+                    .map(|solution| (solution, None, false))
             }
-            carried::CarriedFrom::Factored(from) => {
+            carried::CarriedFrom::Factored { from, reach, stop } => {
+                if let Err(e) = stop.check() {
+                    return Some(Err(e.into()));
+                }
+                let how = eigen::warm::Carrying {
+                    max_width: carried::MAX_FACTORED_WIDTH,
+                    kept: from.exact_grams(),
+                    reach,
+                    stop,
+                };
                 let ritz = |model: &FemModel| {
-                    eigen::warm::ritz_factored(
-                        model,
-                        old,
-                        &previous.solution,
-                        offset,
-                        count,
-                        carried::MAX_FACTORED_WIDTH,
-                        from.exact_grams(),
-                    )
+                    eigen::warm::ritz_factored(model, old, &previous.solution, offset, count, &how)
                 };
                 let mut answer = ritz(&model);
                 if matches!(answer, Err(eigen::EigenError::RowsNotHeld)) {
@@ -361,15 +365,19 @@ impl ModeBasis {
                     };
                     answer = ritz(&model);
                 }
-                answer.map(|(solution, rows)| {
-                    (solution, rows.map(|r| carried::Factored::new(from, r)))
+                answer.map(|a| {
+                    let rows = a.rows.map(|r| carried::Factored::new(from, r));
+                    (a.solution, rows, a.widens)
                 })
             }
         };
         Some(
             answer
-                .map(|(solution, factored)| {
-                    Self::from_parts_with(grid, model, solution, assemble_ms, factored)
+                .map(|(solution, factored, widens)| {
+                    let mut basis =
+                        Self::from_parts_with(grid, model, solution, assemble_ms, factored);
+                    basis.widens = widens;
+                    basis
                 })
                 .map_err(BasisError::from),
         )
@@ -401,6 +409,7 @@ impl ModeBasis {
             surface: exposed_faces(grid),
             factored: factored.map(Arc::new),
             exact_grams: std::sync::OnceLock::new(),
+            widens: false,
         };
         basis.orient_to_default_hit();
         basis

@@ -39,7 +39,7 @@ pub use solvers::{
     mean_wall_voxels, predicted_cold_ms, solve_coarse, AnswerSwitch, Answers, CarriedRitzSolver,
     CoarseFemSolver, IncrementalFemSolver, NeuralSolver, CARRIED_EXPECTED_ERROR,
     COARSE_EXPECTED_ERROR, COARSE_THIN_EXPECTED_ERROR, NEURAL_EXPECTED_ERROR,
-    PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS,
+    PROGRESSIVE_BUDGET_MS, THIN_WALL_VOXELS, WIDE_CARRIED_EXPECTED_ERROR,
 };
 pub use voicing::{DampingParams, HitPoint, Voicing, VoicingError};
 pub use worker::{

@@ -75,7 +75,7 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
         strokes
     );
     println!(
-        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9} {:>7} {:>9} {:>9} {:>7}",
+        "{:<14} {:>7} {:>7} {:>7} {:>7} {:>12} {:>9} {:>7} {:>9} {:>9} {:>6} {:>7} {:>9} {:>9} {:>7}",
         "worker",
         "median",
         "p90",
@@ -83,6 +83,10 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
         "total",
         "interrupted",
         "answers",
+        "solve",
+        "err med",
+        "err max",
+        "wide",
         "solve",
         "err med",
         "err max",
@@ -152,8 +156,9 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
         let mut quick_ms = Vec::new();
         let mut last_seen = None;
         // Each carried answer's largest frequency error against the exact modes of the shape
-        // it answers.
+        // it answers; the same for the second, wide answers (`CarriedRitzSolver`, `Reach::Wide`).
         let mut errors = Vec::new();
+        let (mut wide_ms, mut wide_errors) = (Vec::new(), Vec::new());
         while heard.iter().any(Option::is_none) {
             let due = start + Duration::from_millis(interval_ms * sent.len() as u64);
             if sent.len() < strokes && Instant::now() >= due {
@@ -165,14 +170,19 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
             if let Some(last) = status.last.filter(|l| l.error.is_none()) {
                 if last_seen != Some((last.request, last.solver)) {
                     last_seen = Some((last.request, last.solver));
-                    if last.solver == "carried" && last.request > first {
-                        quick_ms.push(last.ms);
+                    let scored = match last.solver {
+                        "carried" => Some((&mut quick_ms, &mut errors)),
+                        "carried-wide" => Some((&mut wide_ms, &mut wide_errors)),
+                        _ => None,
+                    };
+                    if let Some((times, errs)) = scored.filter(|_| last.request > first) {
+                        times.push(last.ms);
                         let stroke = (last.request - first) as usize;
                         let played = control
                             .latest_object()
                             .filter(|o| o.generation == last.generation);
                         if let Some(basis) = played.as_ref().and_then(|o| o.basis.fem()) {
-                            errors.push(max_relative_difference(basis, &exact[stroke]));
+                            errs.push(max_relative_difference(basis, &exact[stroke]));
                         }
                     }
                 }
@@ -213,13 +223,16 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
         let mut ms: Vec<f64> = heard.into_iter().flatten().collect();
         ms.sort_by(f64::total_cmp);
         let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
-        quick_ms.sort_by(f64::total_cmp);
-        errors.sort_by(f64::total_cmp);
+        for v in [&mut quick_ms, &mut errors, &mut wide_ms, &mut wide_errors] {
+            v.sort_by(f64::total_cmp);
+        }
         if drag == 0 {
             continue;
         }
+        let median = |v: &[f64]| v.get(v.len() / 2).copied().unwrap_or(f64::NAN);
+        let largest = |v: &[f64]| v.last().copied().unwrap_or(f64::NAN);
         println!(
-            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9} {:>7.0} {:>9.1e} {:>9.1e} {:>7.0}",
+            "{:<14} {:>7.0} {:>7.0} {:>7.0} {:>7.0} {:>12} {:>9} {:>7.0} {:>9.1e} {:>9.1e} {:>6} {:>7.0} {:>9.1e} {:>9.1e} {:>7.0}",
             match obsolete {
                 Obsolete::LeftApart => "left apart",
                 Obsolete::Stopped => "stopped",
@@ -232,12 +245,13 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
             total,
             control.status().interrupted,
             control.status().solves - solves_before,
-            quick_ms
-                .get(quick_ms.len() / 2)
-                .copied()
-                .unwrap_or(f64::NAN),
-            errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN),
-            errors.last().copied().unwrap_or(f64::NAN),
+            median(&quick_ms),
+            median(&errors),
+            largest(&errors),
+            wide_ms.len(),
+            median(&wide_ms),
+            median(&wide_errors),
+            largest(&wide_errors),
             final_ms
         );
     }
@@ -247,11 +261,40 @@ pub fn run(interval_ms: u64, strokes: usize, name: &str, spec: &str, nu: f64) {
 /// While a drag keeps interrupting the exact solve, each stroke's carried answer starts
 /// from the exact answer before the drag: its largest frequency error against a cold solve
 /// after 1, 4 and 12 strokes (`shapes[k]` and `exact[k]`: the drag's shape after `k` strokes
-/// and its cold solve, which `run` made for the answers played).
+/// and its cold solve, which `run` made for the answers played), for the instant answer and
+/// the second, wide one (`-` where the instant answer's patch is as wide as it gets).
 fn drift(shapes: &[VoxelGrid], exact: &[ModeBasis], nu: f64) {
     let mut line =
         String::from("carried answer from the exact answer before the drag, largest error:");
+    let before = std::sync::Arc::new(exact[0].clone());
+    let mut wide_line = String::from("  the second, wide answer:");
     for k in DRIFT_AT {
+        let wide = ModeBasis::carried_ritz_wide(
+            &shapes[k],
+            ElementKind::Hex27Blocks,
+            nu,
+            MODES,
+            &before,
+            None,
+            Stop::NEVER,
+        )
+        .expect("comparable")
+        .expect("carried wide");
+        let narrow = ModeBasis::carried_ritz_factored(
+            &shapes[k],
+            ElementKind::Hex27Blocks,
+            nu,
+            MODES,
+            &before,
+            None,
+        )
+        .expect("comparable")
+        .expect("carried");
+        wide_line += &if narrow.carried_widens() {
+            format!(" {:.1e}", max_relative_difference(&wide, &exact[k]))
+        } else {
+            String::from(" -")
+        };
         let carried = ModeBasis::carried_ritz(
             &shapes[k],
             ElementKind::Hex27Blocks,
@@ -265,5 +308,5 @@ fn drift(shapes: &[VoxelGrid], exact: &[ModeBasis], nu: f64) {
         let e = max_relative_difference(&carried, &exact[k]);
         line += &format!(" {e:.1e} after {k} stroke{}", if k > 1 { "s" } else { "" });
     }
-    println!("{line}");
+    println!("{line}\n{wide_line}");
 }

@@ -11,7 +11,8 @@
 //! thread needs ([`ModeBasis::reference_forces_into`]).
 
 use super::{BasisError, FaceWeights, ModeBasis};
-use crate::eigen::warm::{ExactGrams, RitzRows};
+use crate::eigen::warm::{ExactGrams, Reach, RitzRows};
+use crate::eigen::Stop;
 use crate::fem::{ElementCache, ElementKind, FemModel};
 use crate::shape::VoxelGrid;
 use std::sync::Arc;
@@ -27,15 +28,20 @@ pub(super) const MAX_FACTORED_WIDTH: usize = 320;
 pub(super) enum CarriedFrom<'a> {
     /// Formed ([`ModeBasis::carried_ritz`]).
     Formed(&'a ModeBasis),
-    /// Factored ([`ModeBasis::carried_ritz_factored`]).
-    Factored(&'a Arc<ModeBasis>),
+    /// Factored ([`ModeBasis::carried_ritz_factored`], [`ModeBasis::carried_ritz_wide`]),
+    /// relaxed as far as `reach` says and polling `stop` between its phases.
+    Factored {
+        from: &'a Arc<ModeBasis>,
+        reach: Reach,
+        stop: Stop<'a>,
+    },
 }
 
 impl CarriedFrom<'_> {
     pub(super) fn basis(&self) -> &ModeBasis {
         match self {
             CarriedFrom::Formed(b) => b,
-            CarriedFrom::Factored(b) => b,
+            CarriedFrom::Factored { from, .. } => from,
         }
     }
 }
@@ -118,8 +124,42 @@ impl ModeBasis {
         previous: &Arc<ModeBasis>,
         cache: Option<&mut ElementCache>,
     ) -> Option<Result<Self, BasisError>> {
-        let from = CarriedFrom::Factored(previous);
+        let from = CarriedFrom::Factored {
+            from: previous,
+            reach: Reach::Sized,
+            stop: Stop::NEVER,
+        };
         Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
+    }
+
+    /// The second answer to a stroke: [`ModeBasis::carried_ritz_factored`] relaxing the wide
+    /// patch at any size ([`Reach::Wide`]), where the first kept to the narrow one for its
+    /// size ([`ModeBasis::carried_widens`]). Several times closer after the strokes of a drag
+    /// (ARCHITECTURE.md, "a second, wide carried answer"), for 1.7-3.4x the time. It gives up
+    /// with [`crate::eigen::EigenError::Interrupted`] once `stop` says so, polled between its
+    /// phases (the assembly, the Gram matrices, the relaxation, the dense problem).
+    pub fn carried_ritz_wide(
+        grid: &VoxelGrid,
+        element: ElementKind,
+        poisson_ratio: f64,
+        count: usize,
+        previous: &Arc<ModeBasis>,
+        cache: Option<&mut ElementCache>,
+        stop: Stop,
+    ) -> Option<Result<Self, BasisError>> {
+        let from = CarriedFrom::Factored {
+            from: previous,
+            reach: Reach::Wide,
+            stop,
+        };
+        Self::carried_with(grid, (element, poisson_ratio), count, from, cache)
+    }
+
+    /// Whether this carried answer kept to the narrow patch for its size, where the wide
+    /// reach would relax a wider one ([`ModeBasis::carried_ritz_wide`] is worth computing).
+    /// False for any other answer.
+    pub fn carried_widens(&self) -> bool {
+        self.widens
     }
 
     /// The whole Gram columns a stroke carried from this answer cannot relate, which let its

@@ -10,7 +10,11 @@
 //!   solve's updated near the edit (`warm/grams.rs`). The engine's, [`ritz_factored`], reads
 //!   nothing of the mesh away from the edit: its vectors stay factors (`warm/rows.rs`) and
 //!   the Gram columns it cannot relate (the rigid fields, unconverged guards) come from the
-//!   previous answer's whole ones (`warm/exact_grams.rs`);
+//!   previous answer's whole ones (`warm/exact_grams.rs`). How far the relaxation reaches is
+//!   a [`Reach`]: the instant answer's patch is sized for its time, and where that kept it
+//!   narrow the engine plays a second answer over the wide patch
+//!   ([`crate::engine::CarriedRitzSolver::wide`]), which stays in tune through a drag's
+//!   strokes;
 //! - [`solve`], the exact one ([`crate::basis::ModeBasis::solve_warm`]): the carried block
 //!   refined by LOBPCG to the solver tolerance. Measured slower than a cold Lanczos solve on
 //!   most objects (ARCHITECTURE.md), so the engine's exact answer is solved cold.
@@ -158,46 +162,82 @@ pub fn ritz(
     offset: [i64; 3],
     count: usize,
 ) -> Result<EigenSolution, EigenError> {
-    ritz_with(next, previous, previous_solution, offset, count, None, None).map(|(s, _)| s)
+    ritz_with(next, previous, previous_solution, offset, count, None).map(|a| a.solution)
 }
 
-/// [`ritz`] with the Ritz vectors left in factored form where they are at most `max_width`
-/// factors wide ([`RitzRows`]: any row of them on demand): the solution's `vectors` and
-/// `rigid_vectors` then have no columns. Wider (a large correction), they are formed as by
-/// [`ritz`] and the rows are `None`. The engine's carried answer, which a strike reads a few
-/// rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]). Given the previous answer's
-/// [`ExactGrams`], a local edit reads the carried block only near the edit.
+/// How far a carried answer relaxes the mesh around an edit ([`edit_patch`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reach {
+    /// The instant answer: the wide patch ([`WIDE_PATCH_RADIUS`]) where it stays within
+    /// [`WIDE_PATCH_MAX_DOFS`], else the narrow one ([`PATCH_RADIUS`]); patch modes grown
+    /// only on a patch within that budget.
+    Sized,
+    /// The second answer ([`crate::engine::CarriedRitzSolver::wide`]): the wide patch up to
+    /// [`WIDEST_PATCH_DOFS`], its patch modes grown at any size. 2-20x closer after several
+    /// strokes of a drag, at 1.7-3.4x the instant answer's time (ARCHITECTURE.md, "a second,
+    /// wide carried answer").
+    Wide,
+}
+
+/// How [`ritz_factored`] answers.
+#[derive(Debug)]
+pub struct Carrying<'a> {
+    /// Widest factored block kept as factors; a wider one has its vectors formed.
+    pub max_width: usize,
+    /// The previous answer's whole Gram columns ([`ExactGrams`]): given, a local edit reads
+    /// the carried block only near the edit.
+    pub kept: Option<&'a ExactGrams>,
+    /// How far the relaxation reaches.
+    pub reach: Reach,
+    /// Polled between the answer's phases (the Gram matrices, the relaxation, the dense
+    /// problem): [`EigenError::Interrupted`] once it says stop.
+    pub stop: Stop<'a>,
+}
+
+/// A carried answer ([`ritz_factored`]).
+#[derive(Debug)]
+pub struct RitzAnswer {
+    /// The modes; `vectors` and `rigid_vectors` have no columns where `rows` holds them.
+    pub solution: EigenSolution,
+    /// The Ritz vectors as factors, where they were at most [`Carrying::max_width`] wide.
+    pub rows: Option<RitzRows>,
+    /// Whether [`Reach::Wide`] would relax a wider patch than this answer did (this answer
+    /// kept to the narrow one for its size): the second, wide answer is worth computing.
+    pub widens: bool,
+}
+
+/// [`ritz`] with the Ritz vectors left in factored form where they are at most
+/// `how.max_width` factors wide ([`RitzRows`]: any row of them on demand): the solution's
+/// `vectors` and `rigid_vectors` then have no columns. Wider (a large correction), they are
+/// formed as by [`ritz`] and the rows are `None`. The engine's carried answers, which a
+/// strike reads a few rows of ([`crate::basis::ModeBasis::carried_ritz_factored`]). Given the
+/// previous answer's [`ExactGrams`], a local edit reads the carried block only near the edit.
 pub fn ritz_factored(
     next: &FemModel,
     previous: &FemModel,
     previous_solution: &EigenSolution,
     offset: [i64; 3],
     count: usize,
-    max_width: usize,
-    kept: Option<&ExactGrams>,
-) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
-    ritz_with(
-        next,
-        previous,
-        previous_solution,
-        offset,
-        count,
-        Some(max_width),
-        kept,
-    )
+    how: &Carrying,
+) -> Result<RitzAnswer, EigenError> {
+    ritz_with(next, previous, previous_solution, offset, count, Some(how))
 }
 
-/// [`ritz`], its vectors factored where `factored` bounds their width ([`ritz_factored`]).
+/// [`ritz`], its vectors factored as `how` says ([`ritz_factored`]; `None`: formed, the
+/// [`Reach::Sized`] patch, never interrupted).
 fn ritz_with(
     next: &FemModel,
     previous: &FemModel,
     previous_solution: &EigenSolution,
     offset: [i64; 3],
     count: usize,
-    factored: Option<usize>,
-    kept: Option<&ExactGrams>,
-) -> Result<(EigenSolution, Option<RitzRows>), EigenError> {
+    how: Option<&Carrying>,
+) -> Result<RitzAnswer, EigenError> {
     let t0 = Instant::now();
+    let factored = how.map(|h| h.max_width);
+    let kept = how.and_then(|h| h.kept);
+    let reach = how.map_or(Reach::Sized, |h| h.reach);
+    let stop = how.map_or(&Stop::NEVER, |h| &h.stop);
     // No norms: this answer reports no residuals. `next` may hold `K` and `M` only near the
     // edit (`FemModel::assemble_near_edit`): the local path below checks that it holds every
     // row it reads, and the whole path needs a whole model.
@@ -220,7 +260,9 @@ fn ritz_with(
     }
     let sources = NodeSources::new(previous, next, offset);
     let edited = edited_cells(previous, next, offset);
-    let patch = edited.as_ref().and_then(|e| edit_patch(next, e));
+    let (patch, widens) = edited
+        .as_ref()
+        .map_or((None, false), |e| edit_patch(next, e, reach));
     let rows_at = patch.as_ref().map_or(&[][..], |p| &p.nodes[..]);
     let touched = edited.as_ref().and_then(|e| grams::touched_nodes(next, e));
     let extra = extra_rigid(previous_solution).ncols();
@@ -305,25 +347,34 @@ fn ritz_with(
             .expect("a whole block")
         }
     };
+    stop.check()?;
     let grams::Grams {
         k: mut gk,
         m: mut gm,
         mut k_rows,
         mut m_rows,
     } = grams;
-    let correction = patch.as_ref().and_then(|p| {
-        let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
-        let relax = |nodes: &[usize], k: &Mat<f64>, m: &Mat<f64>| {
-            correction::local_correction(&ops, next, nodes, &theta, k.as_ref(), m.as_ref())
-        };
-        relax(&p.nodes, &k_rows, &m_rows).or_else(|| {
-            // The wide patch held a whole part (hinged to the rest): the narrow one, whose
-            // rows are among the wide one's.
-            let narrow = p.narrow.as_ref()?;
-            (k_rows, m_rows) = (p.rows_of(narrow, &k_rows), p.rows_of(narrow, &m_rows));
-            relax(narrow, &k_rows, &m_rows)
-        })
-    });
+    let correction = match &patch {
+        None => None,
+        Some(p) => {
+            let theta: Vec<f64> = (0..w).map(|j| gk[(j, j)] / gm[(j, j)]).collect();
+            // Patch modes grown at any size on the wide reach; else within the wide budget.
+            let grow = reach == Reach::Wide;
+            let relax = |nodes: &[usize], k: &Mat<f64>, m: &Mat<f64>| {
+                let images = (k.as_ref(), m.as_ref());
+                correction::local_correction(&ops, next, nodes, &theta, images, grow, stop)
+            };
+            match (relax(&p.nodes, &k_rows, &m_rows)?, &p.narrow) {
+                (None, Some(narrow)) => {
+                    // The wide patch held a whole part (hinged to the rest): the narrow one,
+                    // whose rows are among the wide one's.
+                    (k_rows, m_rows) = (p.rows_of(narrow, &k_rows), p.rows_of(narrow, &m_rows));
+                    relax(narrow, &k_rows, &m_rows)?
+                }
+                (found, _) => found,
+            }
+        }
+    };
     if let Some(cor) = &correction {
         // Rayleigh-Ritz on [X, Delta], Delta zero off the patch: every Gram block involving
         // it needs only the patch rows (`X^T K Delta = (K X)_p^T Delta_p`).
@@ -341,6 +392,7 @@ fn ritz_with(
         gk = grow(&gk, &k_rows, &cor.k_delta);
         gm = grow(&gm, &m_rows, &cor.m_delta);
     }
+    stop.check()?;
     let want = (previous_solution.rigid_modes + count).min(w);
     let (theta, c) = lobpcg::dense_ritz_by_cholesky(&gk, &gm, want)?;
     let pairs: Vec<(f64, usize, f64)> = (0..want).map(|j| (theta[j], j, f64::NAN)).collect();
@@ -392,7 +444,11 @@ fn ritz_with(
             sources,
             correction: correction.map(|cor| (cor.dofs, cor.delta)),
         };
-        return Ok((answer(Mat::zeros(n, 0), Mat::zeros(n, 0)), Some(rows)));
+        return Ok(RitzAnswer {
+            solution: answer(Mat::zeros(n, 0), Mat::zeros(n, 0)),
+            rows: Some(rows),
+            widens,
+        });
     }
     // Pairs are ascending, so the rigid ones (eigenvalue ~0) come first.
     let cols: Vec<usize> = (kept.iter())
@@ -414,7 +470,11 @@ fn ritz_with(
     }
     let rigid_vectors = v.get(.., kept.len()..).to_owned();
     v.truncate(n, kept.len());
-    Ok((answer(v, rigid_vectors), None))
+    Ok(RitzAnswer {
+        solution: answer(v, rigid_vectors),
+        rows: None,
+        widens,
+    })
 }
 
 /// Carried guard vectors in the instant answer (the exact warm solve carries them all): enough
@@ -449,29 +509,51 @@ const WIDE_PATCH_MAX_DOFS: usize = 1000;
 /// stroke and its factor would cost more than the carried answer saves).
 const MAX_PATCH_DOFS: usize = 1500;
 
-/// The new model's nodes near the edit: within [`WIDE_PATCH_RADIUS`] voxels of a voxel that was
-/// added, removed or refilled where those are at most [`WIDE_PATCH_MAX_DOFS`], else within
-/// [`PATCH_RADIUS`] (for [`crate::fem::ElementKind::Hex27Blocks`]: within two blocks or one of
-/// such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
-/// patch is too large to relax.
-fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>) -> Option<Patch> {
+/// Largest wide patch of [`Reach::Wide`], in DOFs. A drag's edit (the cells changed since
+/// the last exact answer) grows with its strokes, and so does its wide patch: on the ceramic
+/// cup, the glass vase and the default object 1,400-2,500 DOFs after 4-12 strokes
+/// (ARCHITECTURE.md, stop 73); beyond 12 strokes the second answer keeps to the narrow patch
+/// and is not computed ([`RitzAnswer::widens`]).
+const WIDEST_PATCH_DOFS: usize = 3000;
+
+/// The new model's nodes near the edit for `reach` ([`Reach`]): within [`WIDE_PATCH_RADIUS`]
+/// voxels of a voxel that was added, removed or refilled where those are at most
+/// [`WIDE_PATCH_MAX_DOFS`] ([`WIDEST_PATCH_DOFS`] on the wide reach), else within
+/// [`PATCH_RADIUS`] (for [`crate::fem::ElementKind::Hex27Blocks`]: within two blocks or one
+/// of such a block), the `edited` cells of [`edited_cells`]. `None` if nothing changed or the
+/// patch is too large to relax. Also whether the wide reach would take a wider patch than
+/// this one ([`RitzAnswer::widens`]).
+fn edit_patch(next: &FemModel, edited: &HashSet<[i64; 3]>, reach: Reach) -> (Option<Patch>, bool) {
     if edited.is_empty() {
-        return None;
+        return (None, false);
     }
     let block = next.kind.voxels_per_element() as i64;
     let near = |radius: i64| nodes_near(next, edited, (radius + block - 1) / block);
-    let fits = |nodes: &Vec<usize>| 3 * nodes.len() <= MAX_PATCH_DOFS && nodes.len() < next.nodes();
+    let fits =
+        |nodes: &Vec<usize>, most: usize| 3 * nodes.len() <= most && nodes.len() < next.nodes();
     let (wide, narrow) = (near(WIDE_PATCH_RADIUS), near(PATCH_RADIUS));
-    if 3 * wide.len() <= WIDE_PATCH_MAX_DOFS && fits(&wide) && wide.len() > narrow.len() {
-        Some(Patch {
+    let wider = wide.len() > narrow.len();
+    let (sized, widest) = (
+        wider && fits(&wide, WIDE_PATCH_MAX_DOFS),
+        wider && fits(&wide, WIDEST_PATCH_DOFS),
+    );
+    let take_wide = match reach {
+        Reach::Sized => sized,
+        Reach::Wide => widest,
+    };
+    if take_wide {
+        let patch = Patch {
             nodes: wide,
             narrow: Some(narrow),
-        })
+        };
+        (Some(patch), false)
     } else {
-        fits(&narrow).then_some(Patch {
+        let patch = fits(&narrow, MAX_PATCH_DOFS).then_some(Patch {
             nodes: narrow,
             narrow: None,
-        })
+        });
+        let widens = widest && patch.is_some();
+        (patch, widens)
     }
 }
 

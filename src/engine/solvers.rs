@@ -12,14 +12,19 @@
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
 //!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]), its vectors kept as
 //!    factors over the last exact answer ([`ModeBasis::carried_ritz_factored`]);
-//! 3. [`IncrementalFemSolver`], the exact answer (a cold solve: the warm-started exact solve,
+//! 3. [`CarriedRitzSolver::wide`], the second answer to a stroke on a large object (one whose exact
+//!    answer a drag never finishes): the same carried answer relaxed over the wide patch at
+//!    any size ([`ModeBasis::carried_ritz_wide`]), where the instant one kept to the narrow
+//!    patch for its size; several times closer after a drag's strokes, at about twice the
+//!    time, and interrupted by the next stroke;
+//! 4. [`IncrementalFemSolver`], the exact answer (a cold solve: the warm-started exact solve,
 //!    [`ModeBasis::solve_warm`], measured slower; ARCHITECTURE.md); it keeps the answer for
 //!    the next stroke's carried answer. A drag interrupts it at every stroke; once it has
 //!    been interrupted, its next run on an object it solves within
 //!    [`REFRESH_MAX_PREDICTED_MS`] is finished beside the newer strokes
 //!    ([`ModeSolver::finish_when_left`]), so their carried answers start from a recent shape.
 //!
-//! All three share the last exact basis (a coarse or carried answer never becomes the start of
+//! All four share the last exact basis (a coarse or carried answer never becomes the start of
 //! another) and the cut element matrices of recent assemblies ([`crate::fem::ElementCache`]).
 //! A request whose exact answer is kept ([`KeptAnswers`], shared by every chain the plugin
 //! starts) is answered by it at once, and the faster answers step aside.
@@ -28,6 +33,7 @@ use super::answers::KeptAnswers;
 use super::object::ObjectModes;
 use super::worker::{ModeSolver, ObjectRequest};
 use crate::basis::{BasisError, ModeBasis, WARM_MIN_OVERLAP};
+use crate::eigen::warm::Reach;
 use crate::eigen::{ModeCount, Stop};
 use crate::fem::{ElementCache, FemModel};
 use crate::predictor::Predictor;
@@ -308,44 +314,124 @@ impl ModeSolver for CoarseFemSolver {
     }
 }
 
-/// The instant answer to a brush stroke: the last exact modes carried to the edited shape and
+/// The carried answers to a brush stroke: the last exact modes carried to the edited shape and
 /// re-balanced by Rayleigh-Ritz ([`ModeBasis::carried_ritz`]), while the exact solve runs.
+/// Two of them in the chain, by how far their relaxation reaches ([`Reach`]):
+/// - the instant answer ([`CarriedRitzSolver::instant`], "carried"): every stroke, the patch
+///   sized for its time;
+/// - the second answer ([`CarriedRitzSolver::wide`], "carried-wide"), played after the
+///   instant one where that kept to the narrow patch for its size
+///   ([`ModeBasis::carried_ritz_wide`]), on objects whose exact answer a drag never finishes
+///   ([`predicted_cold_ms`] over [`REFRESH_MAX_PREDICTED_MS`]: the glass vase, the glass bowl,
+///   the bell, the ceramic cup). There every stroke of a drag is carried from the exact answer
+///   before the drag, and the narrow patch's error grows with the strokes (the cup's worst
+///   mode 2e-4 after one, 3e-2 after twelve), while the wide reach stays several times closer.
+///   On a smaller object the exact solver's refresh keeps the carried answers' start recent
+///   ([`ModeSolver::finish_when_left`]), and a second answer would only start it later. It
+///   polls the worker's stop between its phases, so a newer stroke is answered at once.
 pub struct CarriedRitzSolver {
     last: Shared,
     elements: SharedElements,
     kept: KeptAnswers,
     answers: AnswerSwitch,
+    reach: Reach,
+    /// The shape the instant answer last kept to the narrow patch for, where the wide reach
+    /// would relax a wider one ([`ModeBasis::carried_widens`]): the wide answer answers it.
+    /// Shared by the chain's two carried answers.
+    widens: Arc<Mutex<Option<u64>>>,
 }
+
+impl CarriedRitzSolver {
+    /// The instant answer, sharing the exact solver's last answer and element cache.
+    pub fn instant(exact: &IncrementalFemSolver, answers: AnswerSwitch) -> Self {
+        CarriedRitzSolver {
+            last: exact.last.clone(),
+            elements: exact.elements.clone(),
+            kept: exact.kept.clone(),
+            answers,
+            reach: Reach::Sized,
+            widens: Arc::default(),
+        }
+    }
+
+    /// The second answer to the strokes the `instant` one answers.
+    pub fn wide(instant: &CarriedRitzSolver) -> Self {
+        CarriedRitzSolver {
+            last: instant.last.clone(),
+            elements: instant.elements.clone(),
+            kept: instant.kept.clone(),
+            answers: instant.answers.clone(),
+            reach: Reach::Wide,
+            widens: instant.widens.clone(),
+        }
+    }
+
+    fn widens(&self) -> std::sync::MutexGuard<'_, Option<u64>> {
+        self.widens.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// Typical largest relative frequency error of the wide carried answer, for the status line.
+/// `cargo bench --bench interactive -- --drag 150 --only NAME` (24 strokes, each answer
+/// scored by its worst of 60 modes against the exact modes of its shape), median / largest:
+/// the ceramic cup 2.9e-3 / 5.7e-3, the glass vase 2.4e-3 / 5.3e-3, the glass bowl 1.4e-3 /
+/// 3.9e-3, the bell 1.2e-2 / 1.8e-2 (the instant answers: 2.8e-2, 1.1e-2, 1.4e-2 and 2.1e-2
+/// median). A single stroke's is 1e-4 to 1e-3.
+pub const WIDE_CARRIED_EXPECTED_ERROR: f64 = 5e-3;
 
 impl ModeSolver for CarriedRitzSolver {
     fn name(&self) -> &'static str {
-        "carried"
+        match self.reach {
+            Reach::Sized => "carried",
+            Reach::Wide => "carried-wide",
+        }
     }
 
+    /// Cheap for the wide answer's extra conditions: the instant answer has just said whether
+    /// a wider patch exists, and the exact solve's prediction reads the grid's voxel count.
     fn applies(&self, r: &ObjectRequest) -> bool {
+        let wide_worth_it = || {
+            *self.widens() == Some(r.grid.shape_hash())
+                && predicted_cold_ms(&r.grid, r.element, r.options.count) > REFRESH_MAX_PREDICTED_MS
+        };
         self.answers.get() != Answers::PredictorOnly
+            && (self.reach == Reach::Sized || wide_worth_it())
             && carried_applies(&self.last, r)
             && !self.kept.has(r)
     }
 
     fn expected_error(&self, _request: &ObjectRequest) -> Option<f64> {
-        Some(CARRIED_EXPECTED_ERROR)
+        Some(match self.reach {
+            Reach::Sized => CARRIED_EXPECTED_ERROR,
+            Reach::Wide => WIDE_CARRIED_EXPECTED_ERROR,
+        })
     }
 
     fn solve(&mut self, r: &ObjectRequest) -> Result<ObjectModes, BasisError> {
+        self.solve_until(r, Stop::NEVER)
+    }
+
+    /// The instant answer polls no stop (it is the quickest answer a stroke has); the wide
+    /// one polls between its phases.
+    fn solve_until(&mut self, r: &ObjectRequest, stop: Stop) -> Result<ObjectModes, BasisError> {
         let previous = lock(&self.last).clone().ok_or(BasisError::NoPrevious)?;
+        let cache = Some(&mut *elements(&self.elements));
+        let (grid, element, nu, count) = (&r.grid, r.element, r.poisson_ratio, count_of(r));
         // Its vectors stay factors over the last exact answer: a strike reads a face's rows
         // of them (`basis/carried.rs`).
-        ModeBasis::carried_ritz_factored(
-            &r.grid,
-            r.element,
-            r.poisson_ratio,
-            count_of(r),
-            &previous,
-            Some(&mut elements(&self.elements)),
-        )
-        .unwrap_or(Err(BasisError::NoPrevious))
-        .map(|b| ObjectModes::Fem(Arc::new(b)))
+        let answer = match self.reach {
+            Reach::Sized => {
+                ModeBasis::carried_ritz_factored(grid, element, nu, count, &previous, cache)
+            }
+            Reach::Wide => {
+                ModeBasis::carried_ritz_wide(grid, element, nu, count, &previous, cache, stop)
+            }
+        }
+        .unwrap_or(Err(BasisError::NoPrevious))?;
+        if self.reach == Reach::Sized {
+            *self.widens() = answer.carried_widens().then(|| r.grid.shape_hash());
+        }
+        Ok(ObjectModes::Fem(Arc::new(answer)))
     }
 }
 
@@ -431,8 +517,9 @@ impl ModeSolver for NeuralSolver {
 
 /// The plugin's chain, sharing the last exact answer and `kept` (exact answers to earlier
 /// requests, [`super::answers`]; the plugin passes one per process): [`NeuralSolver`] when a predictor is
-/// given (else [`CoarseFemSolver`] for slow cold solves), [`CarriedRitzSolver`] (brush
-/// strokes), then [`IncrementalFemSolver`] (exact). `answers` selects among them at run time.
+/// given (else [`CoarseFemSolver`] for slow cold solves), [`CarriedRitzSolver`]'s two answers
+/// (brush strokes: the instant one, and the wide one on the large objects), then
+/// [`IncrementalFemSolver`] (exact). `answers` selects among them at run time.
 pub fn interactive_solvers(
     predictor: Option<Arc<Predictor>>,
     answers: AnswerSwitch,
@@ -459,13 +546,9 @@ pub fn interactive_solvers(
             answers.clone(),
         )),
     };
-    let carried = CarriedRitzSolver {
-        last: exact.last.clone(),
-        elements: exact.elements.clone(),
-        kept: kept.clone(),
-        answers,
-    };
-    vec![first, Box::new(carried), Box::new(exact)]
+    let carried = CarriedRitzSolver::instant(&exact, answers);
+    let wide = CarriedRitzSolver::wide(&carried);
+    vec![first, Box::new(carried), Box::new(wide), Box::new(exact)]
 }
 
 #[cfg(test)]
@@ -521,12 +604,7 @@ mod tests {
         let grid = small_bowl();
         let request = |grid: VoxelGrid| request(grid, 0.24, 10);
         let mut exact = IncrementalFemSolver::new();
-        let mut carried = CarriedRitzSolver {
-            last: exact.last.clone(),
-            elements: exact.elements.clone(),
-            kept: exact.kept.clone(),
-            answers: AnswerSwitch::default(),
-        };
+        let mut carried = CarriedRitzSolver::instant(&exact, AnswerSwitch::default());
         exact.solve(&request(grid.clone())).unwrap();
         let cold = elements(&exact.elements).stats();
         assert!(cold.misses > 50, "{cold:?}");
@@ -546,6 +624,62 @@ mod tests {
             whole.hits + 27 >= cold.hits + cold.misses,
             "{whole:?} after {cold:?}"
         );
+    }
+
+    #[test]
+    fn the_wide_answer_follows_the_instant_one_on_a_large_object_and_gives_way() {
+        // The glass vase preset's shape (15.7k DOFs; a stroke's whole exact solve is predicted
+        // over `REFRESH_MAX_PREDICTED_MS`), one partial voxel filled: the instant answer keeps
+        // to the narrow patch (the wide one is 1,281 DOFs, over `WIDE_PATCH_MAX_DOFS`) and says
+        // so, and only then does the wide answer apply. A stop at any of its polls ends it
+        // with `Interrupted`; run out, it answers the same stroke with the same mode count.
+        // On the small bowl (its exact answer refreshed during drags) it never applies.
+        let kind = ElementKind::Hex27Blocks;
+        let vase = crate::shape::spec::primitive_voxels(
+            &Primitive::Cup {
+                diameter: 16.0,
+                height: 24.0,
+                wall: 1.0,
+            },
+            None,
+            1.0,
+            kind.voxels_per_element(),
+        )
+        .unwrap();
+        let solvers = interactive_solvers(None, AnswerSwitch::default(), &KeptAnswers::new());
+        let [_, mut carried, mut wide, mut exact]: [Box<dyn ModeSolver>; 4] =
+            solvers.try_into().ok().unwrap();
+        assert_eq!(wide.name(), "carried-wide");
+        for (grid, nu, large) in [(vase, 0.22, true), (small_bowl(), 0.24, false)] {
+            exact.solve(&request(grid.clone(), nu, 60)).unwrap();
+            let stroke = request(stroked(&grid, 0), nu, 60);
+            assert!(!wide.applies(&stroke), "before the instant answer");
+            let first = carried.solve(&stroke).unwrap();
+            assert_eq!(wide.applies(&stroke), large);
+            if !large {
+                continue;
+            }
+            // A stop at each of its polls in turn (the assembly, the Gram matrices, the
+            // patch's factor and each step of its modes, the dense problem) ends it there.
+            let mut polls_before_stop = 0;
+            let second = loop {
+                let polls = std::cell::Cell::new(0);
+                let stop_at = || {
+                    polls.set(polls.get() + 1);
+                    polls.get() > polls_before_stop
+                };
+                match wide.solve_until(&stroke, Stop::when(&stop_at)) {
+                    Err(e) => assert!(e.is_interrupted(), "{e} after {polls_before_stop} polls"),
+                    Ok(answer) => break answer,
+                }
+                polls_before_stop += 1;
+            };
+            assert!(polls_before_stop >= 5, "polled {polls_before_stop} times");
+            assert_eq!(second.mode_count(), first.mode_count());
+            // A newer stroke: the last one's verdict no longer applies.
+            let next = request(stroked(&stroke.grid, 1), nu, 60);
+            assert!(!wide.applies(&next));
+        }
     }
 
     #[test]
@@ -605,12 +739,7 @@ mod tests {
                 answers: AnswerSwitch::default(),
                 unanswered_runs: 0,
             };
-            let carried = CarriedRitzSolver {
-                last: exact.last.clone(),
-                elements: exact.elements.clone(),
-                kept: kept.clone(),
-                answers: AnswerSwitch::default(),
-            };
+            let carried = CarriedRitzSolver::instant(&exact, AnswerSwitch::default());
             (exact, carried)
         };
         let grid = Primitive::Sphere { diameter: 10.0 }

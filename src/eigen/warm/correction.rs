@@ -24,7 +24,8 @@
 //! the corrections by rows, a node's values side by side.
 
 use super::super::factor::ShiftedCholesky;
-use super::super::{from_rows, to_rows, Operators};
+use super::super::stop::Stop;
+use super::super::{from_rows, to_rows, EigenError, Operators};
 use crate::fem::sparse::BlockPattern;
 use crate::fem::{ordering, FemModel};
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
@@ -43,22 +44,29 @@ pub(super) struct Correction {
 
 /// The corrections of the columns of `x` (`n x w`) on the nodes `patch`, given their images
 /// on the patch's DOF rows (`kx`, `mx`: `3 p x w`, three rows per patch node in patch order)
-/// and their Rayleigh quotients `theta`. `None` if `K_pp` is not positive definite (the patch
-/// is a whole part of the object).
+/// and their Rayleigh quotients `theta`, with the patch's own modes grown as `grow` says
+/// ([`patch_modes`]). `Ok(None)` if `K_pp` is not positive definite (the patch is a whole
+/// part of the object); [`EigenError::Interrupted`] once `stop` says so, polled after the
+/// patch's factorisation and at each step of its modes' iteration.
 pub(super) fn local_correction(
     ops: &Operators,
     model: &FemModel,
     patch: &[usize],
     theta: &[f64],
-    kx: MatRef<'_, f64>,
-    mx: MatRef<'_, f64>,
-) -> Option<Correction> {
+    (kx, mx): (MatRef<'_, f64>, MatRef<'_, f64>),
+    grow: bool,
+    stop: &Stop,
+) -> Result<Option<Correction>, EigenError> {
     let np = patch.len();
-    let PatchProblem {
+    let Some(PatchProblem {
         pattern,
         mpp,
         mut factor,
-    } = patch_problem(ops, model, patch)?;
+    }) = patch_problem(ops, model, patch)
+    else {
+        return Ok(None);
+    };
+    stop.check()?;
     let dofs: Vec<usize> = patch
         .iter()
         .flat_map(|&node| [3 * node, 3 * node + 1, 3 * node + 2])
@@ -70,18 +78,18 @@ pub(super) fn local_correction(
     let mut k_delta = rhs;
     let theta_max = theta.iter().copied().fold(0.0, f64::max);
     let mut m_delta = patch_mass(&pattern, &mpp, delta.as_ref());
-    if let Some(modes) = patch_modes(&mut factor, &pattern, &mpp, theta_max) {
+    if let Some(modes) = patch_modes(&mut factor, &pattern, &mpp, theta_max, grow, stop)? {
         // The patch's own modes join the corrections: both vanish off the patch.
         delta = side_by_side(&delta, &modes.z);
         k_delta = side_by_side(&k_delta, &modes.kz);
         m_delta = side_by_side(&m_delta, &modes.mz);
     }
-    Some(Correction {
+    Ok(Some(Correction {
         dofs,
         delta,
         k_delta,
         m_delta,
-    })
+    }))
 }
 
 /// A patch's stiffness and mass with its boundary held, and the stiffness factored.
@@ -139,20 +147,24 @@ fn patch_problem(ops: &Operators, model: &FemModel, patch: &[usize]) -> Option<P
 /// A small patch has few modes below it and [`PATCH_MODES`] serve. A Ritz value bounds its
 /// mode from above, so when the block's last is below `theta_max` after a step (a wide patch
 /// on a slender object: the steel bar's two-block patch holds 25 modes below), more modes lie
-/// below it: on a patch within `WIDE_PATCH_MAX_DOFS` the block grows to [`PATCH_MODES_MAX`]
-/// columns by [`krylov_modes`], which keeps the modes below `theta_max` and
-/// [`PATCH_MODES_MARGIN`] more.
+/// below it: on a patch within `WIDE_PATCH_MAX_DOFS`, or at any size where `grow` says so
+/// (the wide reach, `super::Reach::Wide`), the block grows to [`PATCH_MODES_MAX`] columns by
+/// [`krylov_modes`], which keeps the modes below `theta_max` and [`PATCH_MODES_MARGIN`] more.
+/// Polls `stop` before each step.
 fn patch_modes(
     factor: &mut ShiftedCholesky,
     pattern: &BlockPattern,
     mpp: &[f64],
     theta_max: f64,
-) -> Option<PatchModes> {
+    grow: bool,
+    stop: &Stop,
+) -> Result<Option<PatchModes>, EigenError> {
     let rows = 3 * pattern.nodes();
     // The grown block costs its patch solves and products (the default object's drag, whose
     // patch grows with the strokes to 1,000-1,450 DOFs: 4-9 ms more a carried answer with
-    // stop 68's subspace iteration); it is kept to the patches the wide one's budget admits.
-    let widest = if rows <= super::WIDE_PATCH_MAX_DOFS {
+    // stop 68's subspace iteration); the instant answer keeps it to the patches the wide
+    // one's budget admits.
+    let widest = if grow || rows <= super::WIDE_PATCH_MAX_DOFS {
         PATCH_MODES_MAX.min(rows / 2)
     } else {
         PATCH_MODES
@@ -162,23 +174,26 @@ fn patch_modes(
     let mut mz = patch_mass(pattern, mpp, z.as_ref());
     let mut kz = Mat::<f64>::zeros(rows, z.ncols());
     for _ in 0..PATCH_ITERATIONS {
+        stop.check()?;
         let count = z.ncols();
         let mut y = mz.clone();
         factor.solve_in_place(y.as_mut());
         let my = patch_mass(pattern, mpp, y.as_ref());
         let gk = y.transpose() * &mz;
         let gm = y.transpose() * &my;
-        let (mu, c) = super::super::lobpcg::dense_ritz(&gk, &gm, count).ok()?;
+        let Ok((mu, c)) = super::super::lobpcg::dense_ritz(&gk, &gm, count) else {
+            return Ok(None);
+        };
         z = &y * &c;
         kz = &mz * &c;
         // `M Z` for the next step, by linearity instead of another sparse product.
         mz = &my * &c;
         if count + PATCH_MODES <= widest && mu.last().is_some_and(|&m| m < theta_max) {
             let modes = PatchModes { z, kz, mz };
-            return krylov_modes(factor, pattern, mpp, modes, widest, theta_max);
+            return krylov_modes(factor, pattern, mpp, modes, widest, theta_max, stop);
         }
     }
-    Some(PatchModes { z, kz, mz })
+    Ok(Some(PatchModes { z, kz, mz }))
 }
 
 /// Patch modes and their images on the patch: `Z`, `K_pp Z`, `M_pp Z`.
@@ -210,7 +225,8 @@ fn krylov_modes(
     start: PatchModes,
     widest: usize,
     theta_max: f64,
-) -> Option<PatchModes> {
+    stop: &Stop,
+) -> Result<Option<PatchModes>, EigenError> {
     let b = start.z.ncols();
     let PatchModes {
         z: mut v,
@@ -218,6 +234,7 @@ fn krylov_modes(
         mz: mut mv,
     } = start;
     while v.ncols() + b <= widest {
+        stop.check()?;
         let last = v.ncols() - b..v.ncols();
         let mut kw = mv.get(.., last).to_owned();
         let mut w = kw.clone();
@@ -249,15 +266,17 @@ fn krylov_modes(
     let count = v.ncols();
     let gk = v.transpose() * &kv;
     let gm = v.transpose() * &mv;
-    let (mu, c) = super::super::lobpcg::dense_ritz(&gk, &gm, count).ok()?;
+    let Ok((mu, c)) = super::super::lobpcg::dense_ritz(&gk, &gm, count) else {
+        return Ok(None);
+    };
     let below = mu.iter().filter(|&&m| m < theta_max).count();
     let keep = (below + PATCH_MODES_MARGIN).max(PATCH_MODES).min(count);
     let c = c.get(.., 0..keep);
-    Some(PatchModes {
+    Ok(Some(PatchModes {
         z: &v * c,
         kz: &kv * c,
         mz: &mv * c,
-    })
+    }))
 }
 
 /// Patch modes added to the instant answer's Rayleigh-Ritz basis ([`patch_modes`]) when the
@@ -360,8 +379,17 @@ mod tests {
                 Mat::from_fn(3 * patch.len(), w, |i, j| a[(3 * patch[i / 3] + i % 3, j)])
             };
             let (kp, mp) = (on_patch(&kx), on_patch(&mx));
-            let cor =
-                local_correction(&ops, &model, &patch, &theta, kp.as_ref(), mp.as_ref()).unwrap();
+            let cor = local_correction(
+                &ops,
+                &model,
+                &patch,
+                &theta,
+                (kp.as_ref(), mp.as_ref()),
+                false,
+                &Stop::NEVER,
+            )
+            .unwrap()
+            .unwrap();
             let pad = |d: &Mat<f64>| {
                 let mut full = Mat::<f64>::zeros(n, d.ncols());
                 for (i, &dof) in cor.dofs.iter().enumerate() {
@@ -425,7 +453,16 @@ mod tests {
             mpp,
             mut factor,
         } = patch_problem(&ops, &model, &patch).unwrap();
-        let modes = patch_modes(&mut factor, &pattern, &mpp, f64::INFINITY).unwrap();
+        let modes = patch_modes(
+            &mut factor,
+            &pattern,
+            &mpp,
+            f64::INFINITY,
+            false,
+            &Stop::NEVER,
+        )
+        .unwrap()
+        .unwrap();
         let count = modes.z.ncols();
         assert_eq!(count, PATCH_MODES_MAX.min(rows / 2));
         // Whole products of the padded columns, read back on the patch.
