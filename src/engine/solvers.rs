@@ -12,9 +12,9 @@
 //!    carried to the edited shape and re-balanced by one Rayleigh-Ritz step (milliseconds, no
 //!    factorisation; frequencies within [`CARRIED_EXPECTED_ERROR`]), its vectors kept as
 //!    factors over the last exact answer ([`ModeBasis::carried_ritz_factored`]);
-//! 3. [`CarriedRitzSolver::wide`], the second answer to a stroke on a large object (one whose exact
-//!    answer a drag never finishes): the same carried answer relaxed over the wide patch at
-//!    any size ([`ModeBasis::carried_ritz_wide`]), where the instant one kept to the narrow
+//! 3. [`CarriedRitzSolver::wide`], the second answer to a stroke on a large object (one whose
+//!    exact answer a drag never finishes): the same carried answer relaxed over the wide patch
+//!    at any size ([`ModeBasis::carried_ritz_wide`]), where the instant one kept to the narrow
 //!    patch for its size; several times closer after a drag's strokes, at about twice the
 //!    time, and interrupted by the next stroke;
 //! 4. [`IncrementalFemSolver`], the exact answer (a cold solve: the warm-started exact solve,
