@@ -10,7 +10,8 @@
 //! it by the coefficients once: a few thousand multiply-adds, no allocation, as the audio
 //! thread needs ([`ModeBasis::reference_forces_into`]).
 
-use super::{BasisError, FaceWeights, ModeBasis};
+use super::voicing::FaceWeights;
+use super::{BasisError, ModeBasis};
 use crate::eigen::warm::{ExactGrams, Reach, RitzRows};
 use crate::eigen::Stop;
 use crate::fem::{ElementCache, ElementKind, FemModel};

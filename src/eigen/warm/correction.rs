@@ -164,7 +164,7 @@ fn patch_modes(
     // patch grows with the strokes to 1,000-1,450 DOFs: 4-9 ms more a carried answer with
     // stop 68's subspace iteration); the instant answer keeps it to the patches the wide
     // one's budget admits.
-    let widest = if grow || rows <= super::WIDE_PATCH_MAX_DOFS {
+    let widest = if grow || rows <= super::patch::WIDE_PATCH_MAX_DOFS {
         PATCH_MODES_MAX.min(rows / 2)
     } else {
         PATCH_MODES
@@ -445,7 +445,7 @@ mod tests {
             .collect();
         let rows = 3 * patch.len();
         assert!(
-            (200..=super::super::WIDE_PATCH_MAX_DOFS).contains(&rows),
+            (200..=super::super::patch::WIDE_PATCH_MAX_DOFS).contains(&rows),
             "{rows}"
         );
         let PatchProblem {

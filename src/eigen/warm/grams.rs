@@ -37,7 +37,7 @@ use products::{cross_rows, gram, local_gram, Blocks};
 
 use super::super::{EigenSolution, Operators, Which};
 use super::exact_grams::Moved;
-use super::nodes_near;
+use super::patch::nodes_near;
 use crate::buffer;
 use crate::eigen::lobpcg::rigid_row;
 use crate::fem::FemModel;
@@ -398,7 +398,7 @@ mod tests {
         for (i, row) in x_rows.chunks_exact_mut(w).enumerate() {
             row[..6].copy_from_slice(&rigid[i * 6..i * 6 + 6]);
         }
-        let edited = super::super::edited_cells(&previous, &next, offset);
+        let edited = super::super::patch::edited_cells(&previous, &next, offset);
         assert!(edited
             .as_ref()
             .and_then(|e| touched_nodes(&next, e))
