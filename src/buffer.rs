@@ -22,6 +22,7 @@
 //!   (stop 70).
 
 use std::collections::TryReserveError;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// Buffers smaller than this are left alone (their first touch is cheap).
@@ -62,10 +63,30 @@ fn advise_huge_pages<T>(v: &[T]) {
 fn advise_huge_pages<T>(_: &[T]) {}
 
 /// Most bytes of buffers the process keeps for each element type between solves (three types:
-/// `f64`, `usize` and a stiffness block `[f64; 9]`): the default object's three class factors,
-/// their scratch and Lanczos bases are ~20 MB, the ceramic cup's `K` 35 MB; a larger object's
-/// whole factor may not fit, and is then freed as before.
+/// `f64`, `usize` and a stiffness block `[f64; 9]`), unless [`set_kept_bytes`] says otherwise:
+/// the default object's three class factors, their scratch and Lanczos bases are ~20 MB, the
+/// ceramic cup's `K` 35 MB; a larger object's whole factor may not fit, and is then freed as
+/// before.
 pub const KEPT_BYTES: usize = 64 << 20;
+
+/// The budget [`recycle`] keeps to ([`KEPT_BYTES`] unless [`set_kept_bytes`] changed it).
+static KEPT_BUDGET: AtomicUsize = AtomicUsize::new(KEPT_BYTES);
+
+/// Sets how many bytes of buffers the process keeps for each element type (from the next
+/// [`recycle`] on; a lower budget drops the oldest kept buffers as the next ones come back).
+/// For a batch job in a process of its own that solves large objects one after another, whose
+/// whole factors (a few hundred MB for an object filling the 32^3 box) are over
+/// [`KEPT_BYTES`]: each would otherwise come as fresh memory that the kernel zeroes page by
+/// page (`modalforge dataset`: 35 % of its labelling time in `clear_page_erms` under perf,
+/// [`crate::predictor::dataset::KEPT_BYTES_WHILE_LABELLING`]). A plugin keeps the default.
+pub fn set_kept_bytes(bytes: usize) {
+    KEPT_BUDGET.store(bytes, Ordering::Relaxed);
+}
+
+/// The budget of [`set_kept_bytes`].
+pub fn kept_bytes() -> usize {
+    KEPT_BUDGET.load(Ordering::Relaxed)
+}
 
 /// Most buffers the process keeps for each element type ([`KEPT_BYTES`] bounds them first on
 /// most objects). A class-by-class solve holds four or five buffers a class until it combines
@@ -127,15 +148,15 @@ impl<T> Pool<T> {
         Some(v)
     }
 
-    /// Keeps `v`, dropping the oldest beyond [`KEPT_BYTES`] or [`KEPT_COUNT`]; a buffer
-    /// under [`MIN_KEPT_BYTES`] or over [`KEPT_BYTES`] is dropped at once.
-    fn keep(&mut self, v: Vec<T>) {
+    /// Keeps `v`, dropping the oldest beyond `budget_bytes` or [`KEPT_COUNT`]; a buffer
+    /// under [`MIN_KEPT_BYTES`] or over `budget_bytes` is dropped at once.
+    fn keep(&mut self, v: Vec<T>, budget_bytes: usize) {
         let bytes = v.capacity() * std::mem::size_of::<T>();
-        if !(MIN_KEPT_BYTES..=KEPT_BYTES).contains(&bytes) {
+        if !(MIN_KEPT_BYTES..=budget_bytes).contains(&bytes) {
             return;
         }
         self.buffers.push(v);
-        while self.buffers.len() > KEPT_COUNT || self.bytes() > KEPT_BYTES {
+        while self.buffers.len() > KEPT_COUNT || self.bytes() > budget_bytes {
             self.buffers.remove(0);
         }
     }
@@ -216,9 +237,10 @@ fn zeroed_fallible<T: Copy + Default>(len: usize) -> Result<Vec<T>, TryReserveEr
 }
 
 /// Keeps `v`'s memory for a later [`take`], dropping the oldest kept buffers beyond
-/// [`KEPT_BYTES`] or [`KEPT_COUNT`]. Small buffers are freed.
+/// [`kept_bytes`] ([`KEPT_BYTES`] by default) or [`KEPT_COUNT`]. Small buffers are freed.
 pub fn recycle<T: Recycled>(v: Vec<T>) {
-    T::with_pool(|pool| pool.keep(v));
+    let budget_bytes = kept_bytes();
+    T::with_pool(|pool| pool.keep(v, budget_bytes));
 }
 
 /// Keeps a buffer of `len` NaNs of each element type, so that the next solve or assembly that
@@ -343,10 +365,10 @@ mod tests {
         let len = MIN_KEPT_BYTES / 8;
         let (small, large) = (vec![1.0f64; len], vec![2.0f64; 4 * len]);
         let (small_at, large_at) = (small.as_ptr(), large.as_ptr());
-        pool.keep(large);
-        pool.keep(small);
-        pool.keep(vec![3.0f64; 10]); // too small to keep
-                                     // The smallest that fits, emptied; then the next; then none.
+        pool.keep(large, KEPT_BYTES);
+        pool.keep(small, KEPT_BYTES);
+        pool.keep(vec![3.0f64; 10], KEPT_BYTES); // too small to keep
+                                                 // The smallest that fits, emptied; then the next; then none.
         let a = pool.take(len / 2).unwrap();
         assert_eq!((a.as_ptr(), a.len()), (small_at, 0));
         let b = pool.take(len / 2).unwrap();
@@ -354,21 +376,31 @@ mod tests {
         assert!(pool.take(1).is_none());
         // Bounded by count and bytes, oldest dropped first.
         // (Told apart by capacity: a freed buffer's address may come back.)
-        pool.keep(Vec::<f64>::with_capacity(len + 1));
+        pool.keep(Vec::<f64>::with_capacity(len + 1), KEPT_BYTES);
         for _ in 0..KEPT_COUNT + 2 {
-            pool.keep(Vec::<f64>::with_capacity(len));
+            pool.keep(Vec::<f64>::with_capacity(len), KEPT_BYTES);
         }
         assert_eq!(pool.buffers.len(), KEPT_COUNT);
         assert!(pool.buffers.iter().all(|b| b.capacity() == len));
-        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 - len));
+        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 - len), KEPT_BYTES);
         assert!(pool.bytes() <= KEPT_BYTES);
         assert_eq!(
             pool.buffers.len(),
             2,
             "the budget keeps the newest that fit"
         );
-        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1)); // over the budget alone
+        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1), KEPT_BYTES); // over the budget alone
         assert!(pool.bytes() <= KEPT_BYTES);
+        // A larger budget (a batch job's, `set_kept_bytes`) keeps what the default drops.
+        pool.keep(
+            Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1),
+            2 * KEPT_BYTES,
+        );
+        assert_eq!(
+            pool.buffers.last().map(Vec::capacity),
+            Some(KEPT_BYTES / 8 + 1)
+        );
+        assert!(pool.bytes() <= 2 * KEPT_BYTES);
         // The process's pools, through the public functions.
         let v = take::<usize>(len);
         recycle(v);
@@ -401,7 +433,7 @@ mod tests {
         let mut pool = Pool::<f64>::new();
         let mut kept = Vec::with_capacity(2 * len);
         kept.resize(len, 7.0);
-        pool.keep(kept);
+        pool.keep(kept, KEPT_BYTES);
         let again = pool.take_unfilled(len + 10).expect("kept");
         assert_eq!(again.len(), len + 10);
         assert!(again[..len].iter().all(|&x| x == 7.0), "as left");

@@ -227,6 +227,10 @@ fn dataset_command(args: &DatasetArgs) -> Result<String, CliError> {
             "--threads 0: use at least one thread".into(),
         ));
     }
+    // This process only labels: keep the large factors' memory between objects.
+    modalforge::eigen::keep_buffers_up_to(
+        modalforge::predictor::dataset::KEPT_BYTES_WHILE_LABELLING,
+    );
     let summary = modalforge::predictor::dataset::generate(
         &args.out,
         args.count,

@@ -189,10 +189,19 @@ pub struct EigenSolution {
 }
 
 /// Frees the work buffers the solvers keep between solves (Cholesky factors, their scratch,
-/// Lanczos bases: 64 MB at most for each element type). Nothing needs to call it: the next solve reuses them. A memory measurement that must
+/// Lanczos bases: 64 MB at most for each element type unless [`keep_buffers_up_to`] raised
+/// it). Nothing needs to call it: the next solve reuses them. A memory measurement that must
 /// not depend on which objects were solved last does (the soak).
 pub fn free_kept_buffers() {
     crate::buffer::free_kept();
+}
+
+/// Keeps up to `bytes` of the solvers' work buffers for each element type between solves,
+/// instead of 64 MB: for a process of its own that solves large objects one after another
+/// (`modalforge dataset`), whose whole factors would otherwise come back as fresh memory each
+/// time (`buffer.rs`, `set_kept_bytes`). A plugin keeps the default.
+pub fn keep_buffers_up_to(bytes: usize) {
+    crate::buffer::set_kept_bytes(bytes);
 }
 
 /// Guard vectors a solution keeps for warm starts, for `need` wanted pairs (rigid included).
