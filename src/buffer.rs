@@ -368,7 +368,8 @@ mod tests {
         pool.keep(large, KEPT_BYTES);
         pool.keep(small, KEPT_BYTES);
         pool.keep(vec![3.0f64; 10], KEPT_BYTES); // too small to keep
-                                                 // The smallest that fits, emptied; then the next; then none.
+
+        // The smallest that fits, emptied; then the next; then none.
         let a = pool.take(len / 2).unwrap();
         assert_eq!((a.as_ptr(), a.len()), (small_at, 0));
         let b = pool.take(len / 2).unwrap();
@@ -389,7 +390,8 @@ mod tests {
             2,
             "the budget keeps the newest that fit"
         );
-        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1), KEPT_BYTES); // over the budget alone
+        // Over the budget alone.
+        pool.keep(Vec::<f64>::with_capacity(KEPT_BYTES / 8 + 1), KEPT_BYTES);
         assert!(pool.bytes() <= KEPT_BYTES);
         // A larger budget (a batch job's, `set_kept_bytes`) keeps what the default drops.
         pool.keep(
