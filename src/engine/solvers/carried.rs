@@ -7,10 +7,9 @@
 //! ([`ModeBasis::carried_ritz_factored`], [`ModeBasis::carried_ritz_wide`]; the method is
 //! `eigen/warm.rs`'s, after seed 001 sec. 4).
 
-use super::{count_of, IncrementalFemSolver};
 use super::{
-    elements, lock, predicted_cold_ms, warm_candidate, AnswerSwitch, Answers, Shared,
-    SharedElements, REFRESH_MAX_PREDICTED_MS,
+    count_of, elements, lock, predicted_cold_ms, warm_candidate, AnswerSwitch, Answers,
+    IncrementalFemSolver, Shared, SharedElements, REFRESH_MAX_PREDICTED_MS,
 };
 use crate::basis::{BasisError, ModeBasis};
 use crate::eigen::warm::Reach;

@@ -8,6 +8,8 @@
 use super::helper::{BroughtBack, Helper, Waited};
 use super::*;
 
+/// The worker thread's state: the chain, the rings to and from the audio thread, and what
+/// waits to be delivered.
 pub(super) struct Worker {
     shared: Arc<Shared>,
     /// The chain; a slot is empty while its solver is away on the helper thread.
