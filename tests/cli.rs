@@ -666,6 +666,41 @@ fn the_dataset_is_reproducible_and_resumes() {
         2,
         "{out}"
     );
+    // A pitch index of two datasets' training splits holds both, and the network plays it;
+    // a directory with no training records is named.
+    let index = a.path().join("index.bin");
+    let (a_dir, b_dir, i_path) = (
+        a.path().to_str().unwrap(),
+        b.path().to_str().unwrap(),
+        index.to_str().unwrap(),
+    );
+    let index_of = |second: &str| {
+        modalforge(&[
+            "predictor",
+            "index",
+            "--data",
+            a_dir,
+            "--data",
+            second,
+            "--out",
+            i_path,
+        ])
+    };
+    let o = index_of(b_dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(said.contains("indexed 4 training shapes"), "{said}");
+    let bytes = std::fs::read(&index).unwrap();
+    let built = modalforge::predictor::pitch_index::PitchIndex::from_bytes(&bytes).unwrap();
+    assert_eq!(built.len(), 4);
+    assert!(eval(&["--pitch-index", i_path]).contains("network:"));
+    let empty = tempfile::tempdir().unwrap();
+    let o = index_of(empty.path().to_str().unwrap());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("no training records under"),
+        "{err}"
+    );
 }
 
 /// Piped into a reader that quits (`modalforge modes ... | head -1`), the command ends quietly

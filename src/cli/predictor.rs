@@ -78,9 +78,10 @@ pub struct SweepArgs {
 /// Options of `modalforge predictor index`.
 #[derive(clap::Args, Debug)]
 pub struct IndexArgs {
-    /// Dataset directory (its training split is indexed).
-    #[arg(long, value_name = "DIR")]
-    pub data: PathBuf,
+    /// Dataset directory (its training split is indexed); give it more than once to index the
+    /// training splits of several datasets (made with different seeds), in the order given.
+    #[arg(long, value_name = "DIR", required = true)]
+    pub data: Vec<PathBuf>,
     /// The index file to write (the shipped one is assets/predictor/pitch-index.bin).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
@@ -142,18 +143,21 @@ fn read_pitch_index(path: Option<&Path>) -> Result<Arc<PitchIndex>, CliError> {
 /// Runs `modalforge predictor index`.
 pub fn index_command(args: &IndexArgs) -> Result<String, CliError> {
     let mut index = PitchIndex::default();
-    // Decoded one at a time: a record's labels are about 2 MB.
-    for blob in train::read_split(&args.data, false)? {
-        if let Ok(r) = Record::decode(&blob) {
-            index.push(&r.grid, &r.labels);
+    for data in &args.data {
+        let before = index.len();
+        // Decoded one at a time: a record's labels are about 2 MB.
+        for blob in train::read_split(data, false)? {
+            if let Ok(r) = Record::decode(&blob) {
+                index.push(&r.grid, &r.labels);
+            }
         }
-    }
-    if index.is_empty() {
-        return Err(CliError::Option(format!(
-            "no training records under {}: make them with `modalforge dataset --out {}`",
-            args.data.display(),
-            args.data.display()
-        )));
+        if index.len() == before {
+            return Err(CliError::Option(format!(
+                "no training records under {}: make them with `modalforge dataset --out {}`",
+                data.display(),
+                data.display()
+            )));
+        }
     }
     let bytes = index.to_bytes();
     std::fs::write(&args.out, &bytes).map_err(|source| CliError::Io {

@@ -14,7 +14,12 @@
 //!
 //! The embedding: the object's axes sorted by extent (longest first, ties in x, y, z order),
 //! then its filled volume per 4x4x4-voxel block of the 32^3 input box (8^3 = 512 numbers,
-//! stored in quarter voxels as bytes). Nearness is Euclidean. Measured on the held-out split of
+//! stored in quarter voxels as bytes). Nearness is Euclidean. The search visits every shape
+//! but stops summing a shape's distance once it cannot change the answer (it is already
+//! farther than the nearest shape and than the best of every band it fills): the same answer
+//! as the whole sum (`the_pruned_search_finds_what_a_full_one_does`), 0.3 ms instead of 0.9
+//! on the 5,000 shapes of stop 75's index (the 16-voxel bowl, one core, beside a labelling
+//! run). Measured on the held-out split of
 //! `modalforge dataset --seed 2` (median pitch error over the bands FEM fills, every band from
 //! the index, before the near-twin gate): the unsorted embedding of [`super::baseline`] 35.1
 //! cents; sorted axes 26.3; sorted axes and mirrored to put the mass first 26.3; 2-voxel
@@ -85,6 +90,21 @@ pub fn embedding(grid: &VoxelGrid) -> [u8; EMBEDDING] {
         }
     }
     fill.map(|f| (f * UNITS_PER_VOXEL).round().clamp(0.0, 255.0) as u8)
+}
+
+/// Embedding bytes summed between checks of [`PitchIndex::query`]'s pruning.
+const PRUNE_CHUNK: usize = 64;
+
+/// The squared Euclidean distance of two embedding slices, in 16-bit differences (which the
+/// compiler's vectoriser turns into multiply-adds of 16-bit lanes).
+fn squared_distance(a: &[u8], b: &[u8]) -> u32 {
+    a.iter()
+        .zip(b)
+        .map(|(&x, &y)| {
+            let d = x as i16 - y as i16;
+            (d as i32 * d as i32) as u32
+        })
+        .sum()
 }
 
 /// Training shapes' embeddings and band frequencies (see the module docs).
@@ -193,11 +213,27 @@ impl PitchIndex {
             .zip(self.positions.chunks_exact(BANDS))
             .enumerate()
         {
-            let d: u32 = e
+            // A shape can change the answer only if it is nearer than the nearest so far or
+            // than the best of a band it fills: once its partial distance reaches the larger
+            // of those, it is passed over (the answer is the same as with the whole distance).
+            let reach = best
                 .iter()
-                .zip(&query)
-                .map(|(&a, &b)| (a as i32 - b as i32).pow(2) as u32)
-                .sum();
+                .zip(p)
+                .filter(|(_, &position)| position != EMPTY)
+                .fold(nearest.0, |r, (b, _)| r.max(b.0));
+            let mut d = 0u32;
+            for (e, q) in e
+                .chunks_exact(PRUNE_CHUNK)
+                .zip(query.chunks_exact(PRUNE_CHUNK))
+            {
+                d += squared_distance(e, q);
+                if d >= reach {
+                    break;
+                }
+            }
+            if d >= reach {
+                continue;
+            }
             if d < nearest.0 {
                 nearest = (d, i);
             }
@@ -297,6 +333,85 @@ mod tests {
         // The bar's nearest shape is itself, which fills band 3 only.
         let fills = back.query(&bar).nearest_fills;
         assert!(fills.iter().enumerate().all(|(k, &f)| f == (k == 3)));
+    }
+
+    #[test]
+    fn the_pruned_search_finds_what_a_full_one_does() {
+        // Truth: every distance summed in full, the same first-nearest rule. 300 random
+        // shapes (some indexed twice: ties) with random bands; 40 random queries.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move |n: u64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) % n
+        };
+        let random_grid = |next: &mut dyn FnMut(u64) -> u64| {
+            let dims = [
+                4 + next(29) as usize,
+                4 + next(29) as usize,
+                2 + next(20) as usize,
+            ];
+            let salt = next(1 << 20);
+            let keep = 1 + next(4);
+            VoxelGrid::from_fn(dims, 1.0, |x, y, z| {
+                let [x, y, z] = [x, y, z].map(|c| c as u64);
+                let h = (x * 73_856_093) ^ (y * 19_349_663) ^ (z * 83_492_791) ^ salt;
+                h.wrapping_mul(2_654_435_761) % 5 < keep
+            })
+            .unwrap()
+        };
+        let mut shapes = Vec::new();
+        for _ in 0..300 {
+            let g = random_grid(&mut next);
+            let band_log_hz = std::array::from_fn(|b| {
+                (next(4) == 0).then(|| band_log_hz(b, next(1000) as f64 / 1000.0) as f32)
+            });
+            shapes.push((g, labels(band_log_hz)));
+            if next(10) == 0 {
+                shapes.push(shapes.last().unwrap().clone());
+            }
+        }
+        let index = PitchIndex::from_labels(shapes.iter().map(|(g, l)| (g, l)));
+        for _ in 0..40 {
+            let q = random_grid(&mut next);
+            let e = embedding(&q);
+            let d: Vec<u32> = shapes
+                .iter()
+                .map(|(g, _)| {
+                    let f = embedding(g);
+                    f.iter()
+                        .zip(&e)
+                        .map(|(&a, &b)| (a as i32 - b as i32).pow(2) as u32)
+                        .sum()
+                })
+                .collect();
+            let first_min = |of: &dyn Fn(usize) -> bool| {
+                (0..shapes.len()).filter(|&i| of(i)).min_by_key(|&i| d[i])
+            };
+            let found = index.query(&q);
+            let nearest = first_min(&|_| true).unwrap();
+            assert_eq!(
+                found.nearest_fills,
+                shapes[nearest].1.band_log_hz.map(|b| b.is_some())
+            );
+            for b in 0..BANDS {
+                let want = first_min(&|i| shapes[i].1.band_log_hz[b].is_some());
+                let got = found.band_log_hz[b];
+                match want {
+                    None => assert_eq!(got, None, "band {b}"),
+                    Some(i) => {
+                        // The stored position is a u16 of the band's width in log10 (at most
+                        // 0.23, band 0): within 2e-6 of the label, plus f32 rounding.
+                        let truth = shapes[i].1.band_log_hz[b].unwrap();
+                        assert!((got.unwrap() - truth).abs() < 4e-6, "band {b}");
+                        // The distance names the shape: the first at the least distance.
+                        let norm = e.iter().map(|&v| (v as f32).powi(2)).sum::<f32>().max(1.0);
+                        assert_eq!(found.band_distance[b], d[i] as f32 / norm, "band {b}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
