@@ -68,8 +68,11 @@ pub fn shipped_pitch_index() -> Result<Arc<PitchIndex>, PitchIndexError> {
 /// `modalforge dataset --count 200 --held-out 0 --seed 7 --element hex27x2`; with the presence
 /// shift below): F1 0.53 at 0, 0.62 at -0.75, 0.64 at -1, 0.62 at -1.25, 0.62 at -1.5, 0.59
 /// at -2; the best of the whole sweep, 0.640 (-1.5 with a shift of 1), is within 0.001.
-/// Recall 67 %, precision 61 % there. The held-out families played no part in choosing it.
-pub const MASK_LOGIT_THRESHOLD: f32 = -1.0;
+/// Recall 67 %, precision 61 % there. With the pitch index's 10,000 shapes (stop 76) the same
+/// sweep's best is -1.5 with a shift of 1: F1 0.666 (recall 74 %, precision 60 %) against
+/// 0.650 at -1 with 0.5 (0.646 at -1.25 with 0.5, 0.648 at -1.25 with 1). The held-out
+/// families played no part in choosing it.
+pub const MASK_LOGIT_THRESHOLD: f32 = -1.5;
 
 /// How far the pitch index's nearest training shape moves a band's presence logit: up where
 /// that shape has a mode in the band, down where it has none (Deep-Modal's shape matching as
@@ -78,8 +81,10 @@ pub const MASK_LOGIT_THRESHOLD: f32 = -1.0;
 /// +-2 (each at threshold -1; the hex8i-trained weights before these: 0.591, 0.623, 0.608,
 /// 0.565, and the share of the 3, 5 or 9 nearest did no better, 0.619 at best). On the 500
 /// held-out objects, with the pitch index, it takes precision from 51.7 % to 59.8 % and
-/// recall from 68.3 % to 66.9 %.
-pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 0.5;
+/// recall from 68.3 % to 66.9 %. With the index's 10,000 shapes (stop 76) a nearest shape
+/// is nearer, and +-1 is the sweep's best (F1 0.666 at threshold -1.5; 0.650 at +-0.5, 0.626
+/// at +-2 at their best thresholds).
+pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 1.0;
 
 /// A band plays at the pitch index's frequency only where the training shape it comes from is
 /// this near (squared embedding distance over the shape's own squared norm,
@@ -88,8 +93,10 @@ pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 0.5;
 /// 40 from the band centres). Chosen on the same 200 training-family objects (median pitch
 /// error 33.4 cents ungated, 38.8 from the network alone; 31.9, 32.9, 31.7, 31.7, 31.8 at
 /// 0.01, 0.05, 0.1, 0.2, 0.3: `modalforge predictor sweep`); on the 500 held-out objects the
-/// median is 26.2 cents with it (40.9 from the network alone).
-pub const NEAR_TWIN_DISTANCE: f32 = 0.1;
+/// median is 26.2 cents with it (40.9 from the network alone). With the index's 10,000
+/// shapes (stop 76) the sweep gives 28.9, 29.7, 30.2, 30.0 and 30.5 cents at 0.01, 0.05, 0.1,
+/// 0.2 and 0.3 (32.2 ungated): a twin that near is found more often.
+pub const NEAR_TWIN_DISTANCE: f32 = 0.01;
 
 /// The trained network, ready to predict on the CPU, and the pitch index that gives its bands'
 /// frequencies ([`pitch_index`]).

@@ -10,19 +10,20 @@ use modalforge::predictor::{metrics, Predictor, SHIPPED_LABEL_ELEMENT};
 /// Held-out objects scored (a plate with holes, a handled cup, alternately).
 const OBJECTS: usize = 4;
 /// Bounds on the four objects' figures. The shipped weights and pitch index measure recall
-/// 63.8 %, precision 69.0 %, amplitude MSE 0.0833 and a median pitch error of 37.5 cents on
+/// 56.1 %, precision 70.3 %, amplitude MSE 0.107 and a median pitch error of 44.6 cents on
 /// them (`modalforge predictor eval --limit 4` on a `modalforge dataset --count 1 --held-out
-/// 4 --seed 1 --element hex27x2`, masks at `MASK_LOGIT_THRESHOLD`; the network alone: 56.0 %,
-/// 50.2 %, 0.092, 44.9 cents; the band centres 40.7 cents). The mask and amplitude bounds sit
-/// a fifth away; the pitch bound is the band centres' median less a little, so a pitch index
-/// that stops finding these objects' twins (or bands played at their centres) fails it, while
-/// the computation itself is deterministic. A regression of the weights, the input layout,
-/// the decode, the threshold or the pitch index fails them. (These are interim figures, short
-/// of the goals: assets/predictor/README.md.)
-const RECALL_BOUND: f64 = 0.51;
-const PRECISION_BOUND: f64 = 0.55;
-const MSE_BOUND: f64 = 0.100;
-const CENTS_BOUND: f64 = 40.0;
+/// 4 --seed 1 --element hex27x2`, masks at `MASK_LOGIT_THRESHOLD`; the network alone: 73.3 %,
+/// 58.9 %, 0.098; the band centres 45.3 cents). The mask and amplitude bounds sit a fifth
+/// away. The plates' holes go through them since stop 76, so no indexed shape is a near twin
+/// of these four and their bands play at the network's frequencies: the pitch bound is the band
+/// centres' median plus a little, which bands played off their places (a decode or pitch
+/// index fault) exceed; the computation itself is deterministic. A regression of the weights,
+/// the input layout, the decode, the threshold or the pitch index fails them. (These are
+/// interim figures, short of the goals: assets/predictor/README.md.)
+const RECALL_BOUND: f64 = 0.45;
+const PRECISION_BOUND: f64 = 0.56;
+const MSE_BOUND: f64 = 0.130;
+const CENTS_BOUND: f64 = 46.0;
 
 #[test]
 fn the_shipped_weights_predict_held_out_objects_within_bounds() {

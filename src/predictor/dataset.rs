@@ -405,6 +405,22 @@ mod tests {
     }
 
     #[test]
+    fn a_held_out_plate_has_its_holes() {
+        // Truth: a plain plate fills its whole bounding box; every hole removes voxels. The
+        // holes were once placed anywhere in the box and mostly missed the plate.
+        let mut plates = 0;
+        for index in 0..40 {
+            let (family, grid) = object(2, true, index);
+            if family == Family::PlateWithHoles {
+                plates += 1;
+                let box_voxels: usize = grid.dims().iter().product();
+                assert!(grid.count() < box_voxels, "plate {index}: no hole");
+            }
+        }
+        assert!(plates >= 10, "{plates} plates");
+    }
+
+    #[test]
     fn records_round_trip_and_refuse_garbage() {
         // A labelled bowl (its lowest modes near 2-3 kHz at the reference): the record reads
         // back equal (log-amplitudes to 1/255).
