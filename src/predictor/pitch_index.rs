@@ -6,9 +6,12 @@
 //! frequency each band plays and for a second opinion on which bands hold a mode
 //! ([`super::Prediction::retune`] applies both). The network's own in-band position head never
 //! learnt (its loss stayed at the uniform distribution's value in every training run, so its
-//! frequencies are the band centres, about 41 cents off on the held-out split); with a near
-//! twin's FEM frequencies the median is 26.2 cents (hex27x2 labels; 25.8 with the hex8i ones
-//! before). This is Deep-Modal's shape matching (Jin et
+//! frequencies are the band centres, about 41 cents off on the held-out split). On training
+//! families, where near twins exist, a near twin's FEM frequencies help: 38.6 -> 28.9 cents
+//! on 200 unseen objects (`predictor sweep`, 10,000 shapes). On the held-out split they
+//! rarely do: 40.1 cents against the band centres' 41.8, since stop 76 gave the held-out
+//! plates their holes (the 26.2 cents measured before came from hole-less plates that had an
+//! identical training plate). This is Deep-Modal's shape matching (Jin et
 //! al. 2020, sec. 5.2) used beside the network, with an embedding that does not depend on which
 //! axis the object lies along.
 //!
@@ -26,8 +29,8 @@
 //! blocks 27.1; the median of the 3 nearest 34.3 (a median of different modes lands near the
 //! band centre); adding the network's shape descriptors to the distance 26.5-27.4; a frequency
 //! shift regressed on the descriptor differences 29.1. (So the embedding was chosen looking
-//! at the held-out split; the near-twin gate and the presence weight were chosen on unseen
-//! objects of the training families only.)
+//! at the held-out split, the one with hole-less plates; the near-twin gate and the presence
+//! weight were chosen on unseen objects of the training families only.)
 //!
 //! The file (`assets/predictor/pitch-index.bin`, made by `modalforge predictor index`): the
 //! magic `MFPI`, a version byte, the shape count (u32 little-endian), then per shape its 512
