@@ -94,9 +94,10 @@ pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 1.0;
 /// error 33.4 cents ungated, 38.8 from the network alone; 31.9, 32.9, 31.7, 31.7, 31.8 at
 /// 0.01, 0.05, 0.1, 0.2, 0.3: `modalforge predictor sweep`); on the 500 held-out objects the
 /// median was 26.2 cents with it (40.9 from the network alone), on the split whose plates had
-/// no holes (stop 76: 43.0 cents on the corrected split, 40.1 with the settings below). With the index's 10,000
-/// shapes (stop 76) the sweep gives 28.9, 29.7, 30.2, 30.0 and 30.5 cents at 0.01, 0.05, 0.1,
-/// 0.2 and 0.3 (32.2 ungated): a twin that near is found more often.
+/// no holes (stop 76: 43.0 cents on the corrected split, 40.1 with the settings of stop 76).
+/// With the index's 10,000 shapes (stop 76) the sweep gives 28.9, 29.7, 30.2, 30.0 and 30.5
+/// cents at 0.01, 0.05, 0.1, 0.2 and 0.3 (32.2 ungated): a twin that near is found more
+/// often.
 pub const NEAR_TWIN_DISTANCE: f32 = 0.01;
 
 /// The trained network, ready to predict on the CPU, and the pitch index that gives its bands'

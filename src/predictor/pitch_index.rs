@@ -342,21 +342,11 @@ mod tests {
     fn the_pruned_search_finds_what_a_full_one_does() {
         // Truth: every distance summed in full, the same first-nearest rule. 300 random
         // shapes (some indexed twice: ties) with random bands; 40 random queries.
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move |n: u64| {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 33) % n
-        };
-        let random_grid = |next: &mut dyn FnMut(u64) -> u64| {
-            let dims = [
-                4 + next(29) as usize,
-                4 + next(29) as usize,
-                2 + next(20) as usize,
-            ];
-            let salt = next(1 << 20);
-            let keep = 1 + next(4);
+        let mut rng = crate::rng::SplitMix64::new(76);
+        let random_grid = |rng: &mut crate::rng::SplitMix64| {
+            let dims = [rng.int(4, 32), rng.int(4, 32), rng.int(2, 21)];
+            let salt = rng.next_u64();
+            let keep = rng.int(1, 4) as u64;
             VoxelGrid::from_fn(dims, 1.0, |x, y, z| {
                 let [x, y, z] = [x, y, z].map(|c| c as u64);
                 let h = (x * 73_856_093) ^ (y * 19_349_663) ^ (z * 83_492_791) ^ salt;
@@ -366,18 +356,18 @@ mod tests {
         };
         let mut shapes = Vec::new();
         for _ in 0..300 {
-            let g = random_grid(&mut next);
+            let g = random_grid(&mut rng);
             let band_log_hz = std::array::from_fn(|b| {
-                (next(4) == 0).then(|| band_log_hz(b, next(1000) as f64 / 1000.0) as f32)
+                (rng.below(4) == 0).then(|| band_log_hz(b, rng.unit()) as f32)
             });
             shapes.push((g, labels(band_log_hz)));
-            if next(10) == 0 {
+            if rng.below(10) == 0 {
                 shapes.push(shapes.last().unwrap().clone());
             }
         }
         let index = PitchIndex::from_labels(shapes.iter().map(|(g, l)| (g, l)));
         for _ in 0..40 {
-            let q = random_grid(&mut next);
+            let q = random_grid(&mut rng);
             let e = embedding(&q);
             let d: Vec<u32> = shapes
                 .iter()
