@@ -110,6 +110,19 @@ fn squared_distance(a: &[u8], b: &[u8]) -> u32 {
         .sum()
 }
 
+/// The squared distance of two embeddings where it is under `reach`; `None` as soon as the
+/// partial sum, taken [`PRUNE_CHUNK`] bytes at a time, reaches it.
+fn distance_below(a: &[u8], b: &[u8], reach: u32) -> Option<u32> {
+    let mut d = 0u32;
+    for (a, b) in a.chunks_exact(PRUNE_CHUNK).zip(b.chunks_exact(PRUNE_CHUNK)) {
+        d += squared_distance(a, b);
+        if d >= reach {
+            return None;
+        }
+    }
+    Some(d)
+}
+
 /// Training shapes' embeddings and band frequencies (see the module docs).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PitchIndex {
@@ -224,19 +237,9 @@ impl PitchIndex {
                 .zip(p)
                 .filter(|(_, &position)| position != EMPTY)
                 .fold(nearest.0, |r, (b, _)| r.max(b.0));
-            let mut d = 0u32;
-            for (e, q) in e
-                .chunks_exact(PRUNE_CHUNK)
-                .zip(query.chunks_exact(PRUNE_CHUNK))
-            {
-                d += squared_distance(e, q);
-                if d >= reach {
-                    break;
-                }
-            }
-            if d >= reach {
+            let Some(d) = distance_below(e, &query, reach) else {
                 continue;
-            }
+            };
             if d < nearest.0 {
                 nearest = (d, i);
             }
