@@ -11,6 +11,7 @@
 //! once per shape ([`Predictor::predict`], the trunk) and once per strike
 //! ([`Prediction::strike`], one cell's 1x1 head, evaluated here in plain Rust).
 
+pub mod band_net;
 pub mod bands;
 pub mod baseline;
 pub mod dataset;
@@ -21,6 +22,7 @@ pub mod pitch_index;
 pub mod ritz;
 pub mod train;
 
+use band_net::BandNet;
 use bands::{BandEncoding, BandMode, BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -44,6 +46,9 @@ pub enum PredictorError {
 
 /// The shipped weights (burnpack), compiled in.
 const SHIPPED_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/modenet.bpk");
+
+/// The shipped band network's weights (burnpack, [`band_net`]), compiled in.
+const SHIPPED_BAND_WEIGHTS: &[u8] = include_bytes!("../assets/predictor/bandnet.bpk");
 
 /// The shipped pitch index (training shapes' band frequencies), compiled in.
 const SHIPPED_PITCH_INDEX: &[u8] = include_bytes!("../assets/predictor/pitch-index.bin");
@@ -104,6 +109,7 @@ pub const NEAR_TWIN_DISTANCE: f32 = 0.01;
 /// frequencies ([`pitch_index`]).
 pub struct Predictor {
     model: ModeNet,
+    bands: Option<BandNet>,
     device: Device,
     pitch: Option<Arc<PitchIndex>>,
 }
@@ -128,24 +134,34 @@ impl Predictor {
         let model = ModeNet::new(network::Widths::SHIPPED, &device)
             .try_load_record(record)
             .map_err(|e| weights(&e))?;
+        let bands = band_net_from_bytes(SHIPPED_BAND_WEIGHTS, "assets/predictor/bandnet.bpk")?;
         let pitch = shipped_pitch_index().map_err(|e| {
             PredictorError::Weights("assets/predictor/pitch-index.bin".into(), e.to_string())
         })?;
         Ok(Self {
             model,
+            bands: Some(bands),
             device,
             pitch: Some(pitch),
         })
     }
 
     /// Wraps a network in memory (tests, and scoring a checkpoint without a file), with the
-    /// pitch index `pitch` (`None`: the network's own band frequencies).
+    /// pitch index `pitch` (`None`: the network's own band frequencies) and no band network
+    /// (the cell network's own band presence; [`Predictor::with_bands`] adds one).
     pub fn from_model(model: ModeNet, pitch: Option<Arc<PitchIndex>>) -> Self {
         Self {
             model,
+            bands: None,
             device: Device::flex(),
             pitch,
         }
+    }
+
+    /// The same predictor with `bands` deciding which bands hold a mode (`None`: the cell
+    /// network's own presence branch).
+    pub fn with_bands(self, bands: Option<BandNet>) -> Self {
+        Self { bands, ..self }
     }
 
     /// The weights shipped in the repository (`assets/predictor/modenet.bpk`, compiled in;
@@ -154,7 +170,8 @@ impl Predictor {
         Self::from_bytes(SHIPPED_WEIGHTS, "assets/predictor/modenet.bpk")
     }
 
-    /// Loads weights from a file.
+    /// Loads weights from a file (the cell network's; the shipped band network decides which
+    /// bands hold a mode, as [`Predictor::shipped`]'s does).
     pub fn from_file(path: &std::path::Path) -> Result<Self, PredictorError> {
         let name = path.display().to_string();
         crate::limits::check_file_size(
@@ -191,7 +208,11 @@ impl Predictor {
             boxed = crate::shape::ops::resampled(grid, side).ok_or(PredictorError::Empty)?;
             &boxed
         };
-        let mut prediction = predict_batch(&self.model, &[input], &self.device)
+        let nets = Nets {
+            cells: &self.model,
+            bands: self.bands.as_ref(),
+        };
+        let mut prediction = predict_batch(nets, &[input], &self.device)
             .pop()
             .expect("one shape in, one answer out");
         let ritz = ritz::RitzModes::above_bands(input);
@@ -370,9 +391,42 @@ impl Prediction {
     }
 }
 
-/// Runs the network on shapes that fit the 32^3 box (`device` without autodiff).
+/// The networks a prediction runs: the cell network (per-cell masks and amplitudes, band
+/// frequencies) and, where given, the band network, whose presence logits replace the cell
+/// network's ([`band_net`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Nets<'a> {
+    /// The encoder-decoder.
+    pub cells: &'a ModeNet,
+    /// The band network (`None`: the cell network's own presence branch).
+    pub bands: Option<&'a BandNet>,
+}
+
+impl<'a> From<&'a ModeNet> for Nets<'a> {
+    fn from(cells: &'a ModeNet) -> Self {
+        Self { cells, bands: None }
+    }
+}
+
+/// A band network from burnpack bytes; `name` says where they came from, for the error.
+pub fn band_net_from_bytes(bytes: &[u8], name: &str) -> Result<BandNet, PredictorError> {
+    let weights = |e: &dyn std::fmt::Display| PredictorError::Weights(name.into(), e.to_string());
+    let record =
+        burn::store::ModuleRecord::from_bytes(burn::tensor::Bytes::from_bytes_vec(bytes.to_vec()))
+            .map_err(|e| weights(&e))?;
+    BandNet::new(network::Widths::SHIPPED, &Device::flex())
+        .try_load_record(record)
+        .map_err(|e| weights(&e))
+}
+
+/// The shipped band network (`assets/predictor/bandnet.bpk`).
+pub fn shipped_band_net() -> Result<BandNet, PredictorError> {
+    band_net_from_bytes(SHIPPED_BAND_WEIGHTS, "assets/predictor/bandnet.bpk")
+}
+
+/// Runs the networks on shapes that fit the 32^3 box (`device` without autodiff).
 pub fn predict_batch(
-    model: &ModeNet,
+    nets: Nets<'_>,
     grids: &[&crate::shape::VoxelGrid],
     device: &Device,
 ) -> Vec<Prediction> {
@@ -383,11 +437,12 @@ pub fn predict_batch(
         fills.extend(train::input_of(g, [0, 1, 2]));
     }
     let input = Tensor::<5>::from_data(TensorData::new(fills, [b, 1, n, n, n]), device);
-    let trunk = model.trunk(input);
-    let (weights, bias) = model.head_matrix();
+    let band_logit = nets.bands.map(|bands| bands.logits(input.clone()));
+    let trunk = nets.cells.trunk(input);
+    let (weights, bias) = nets.cells.head_matrix();
     let features = trunk.features.into_data().try_to_vec::<f32>().expect("f32");
-    let presence = trunk
-        .band_logit
+    let presence = band_logit
+        .unwrap_or(trunk.band_logit)
         .into_data()
         .try_to_vec::<f32>()
         .expect("f32");
@@ -447,7 +502,7 @@ mod tests {
         };
         let index = PitchIndex::from_labels([(&bar, &labels)]);
         let [own_bar, own_cube]: [Prediction; 2] =
-            predict_batch(&model, &[&bar, &cube], &Device::flex())
+            predict_batch((&model).into(), &[&bar, &cube], &Device::flex())
                 .try_into()
                 .unwrap();
         let mut bar_p = own_bar.clone();
@@ -472,7 +527,7 @@ mod tests {
         let device = Device::flex();
         let model = ModeNet::new(network::Widths::SHIPPED, &device);
         let grid = VoxelGrid::from_fn([20, 12, 6], 1.0, |_, _, _| true).unwrap();
-        let p = &predict_batch(&model, &[&grid], &device)[0];
+        let p = &predict_batch((&model).into(), &[&grid], &device)[0];
         let whole = model.head(&model.trunk(Tensor::<5>::from_data(
             TensorData::new(train::input_of(&grid, [0, 1, 2]), [1, 1, 32, 32, 32]),
             &device,

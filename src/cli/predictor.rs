@@ -6,9 +6,10 @@
 
 use super::chart::{methods_to_csv, MethodRow};
 use super::CliError;
+use modalforge::predictor::band_net::BandNet;
 use modalforge::predictor::dataset::{Family, Record};
 use modalforge::predictor::pitch_index::PitchIndex;
-use modalforge::predictor::{baseline, metrics, train};
+use modalforge::predictor::{baseline, metrics, train, Nets};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -43,6 +44,10 @@ pub struct TrainArgs {
     /// Threads [default: every core].
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
+    /// Train the band network (which bands hold a mode; `assets/predictor/bandnet.bpk`) on
+    /// band presence alone, instead of the cell network (`modenet.bpk`).
+    #[arg(long)]
+    pub bands_only: bool,
 }
 
 /// `modalforge predictor ...`.
@@ -70,6 +75,11 @@ pub struct SweepArgs {
     /// Weights to score (a checkpoint's model.bpk).
     #[arg(long, value_name = "FILE.bpk")]
     pub weights: PathBuf,
+    /// Band network weights (a `train --bands-only` checkpoint's model.bpk), which decide which
+    /// bands hold a mode [default: none, the cell network's own presence branch; the shipped
+    /// predictor's is assets/predictor/bandnet.bpk].
+    #[arg(long, value_name = "FILE.bpk")]
+    pub band_weights: Option<PathBuf>,
     /// Pitch index the bands play at [default: the shipped one].
     #[arg(long, value_name = "FILE")]
     pub pitch_index: Option<PathBuf>,
@@ -96,6 +106,11 @@ pub struct EvalArgs {
     /// Weights to score (a checkpoint's model.bpk).
     #[arg(long, value_name = "FILE.bpk")]
     pub weights: PathBuf,
+    /// Band network weights (a `train --bands-only` checkpoint's model.bpk), which decide which
+    /// bands hold a mode [default: none, the cell network's own presence branch; the shipped
+    /// predictor's is assets/predictor/bandnet.bpk].
+    #[arg(long, value_name = "FILE.bpk")]
+    pub band_weights: Option<PathBuf>,
     /// Score at most this many held-out objects [default: all].
     #[arg(long, value_name = "N")]
     pub limit: Option<usize>,
@@ -198,6 +213,7 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
         halve_every: args.halve_every,
         validate: args.validate,
         seed: args.seed,
+        bands_only: args.bands_only,
     };
     if !(args.learning_rate.is_finite() && args.learning_rate > 0.0 && args.learning_rate < 1.0) {
         return Err(CliError::Option(format!(
@@ -207,6 +223,18 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
     }
     let state = thread_pool(args.threads)?.install(|| train::train(&options))?;
     let last = state.history.last();
+    if args.bands_only {
+        return Ok(format!(
+            "{} epochs, {} steps, {:.0} s of training; band network weights in {}{}",
+            state.epoch,
+            state.step,
+            state.seconds,
+            args.out.join("model.bpk").display(),
+            last.and_then(|r| r.presence)
+                .map(|p| format!("; held-out {p}"))
+                .unwrap_or_default()
+        ));
+    }
     Ok(format!(
         "{} epochs, {} steps, {:.0} s of training; weights in {}{}",
         state.epoch,
@@ -229,10 +257,25 @@ fn decoded_split(data: &Path, held_out: bool, limit: usize) -> Result<Vec<Record
         .collect())
 }
 
+/// The band network of `--band-weights`, when given.
+fn load_bands(
+    path: Option<&Path>,
+    device: &burn::tensor::Device,
+) -> Result<Option<BandNet>, CliError> {
+    path.map(|p| train::load_band_net(p, device))
+        .transpose()
+        .map_err(CliError::from)
+}
+
 /// Runs `modalforge predictor eval`.
 pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
     let model = train::load_model(&args.weights, &device)?;
+    let bands = load_bands(args.band_weights.as_deref(), &device)?;
+    let nets = Nets {
+        cells: &model,
+        bands: bands.as_ref(),
+    };
     let held_out = !args.training_split;
     let held = decoded_split(&args.data, held_out, args.limit.unwrap_or(usize::MAX))?;
     if held.is_empty() {
@@ -255,8 +298,8 @@ pub fn eval_command(args: &EvalArgs) -> Result<String, CliError> {
         (scores, t0.elapsed().as_secs_f64() * 1e3 / held.len() as f64)
     };
     let (played_each, played_ms) =
-        timed(&|| metrics::evaluate_each(&model, Some(&pitch), &held, &device));
-    let (alone_each, alone_ms) = timed(&|| metrics::evaluate_each(&model, None, &held, &device));
+        timed(&|| metrics::evaluate_each(nets, Some(&pitch), &held, &device));
+    let (alone_each, alone_ms) = timed(&|| metrics::evaluate_each(nets, None, &held, &device));
     let (played, alone) = (
         metrics::summarise(&played_each),
         metrics::summarise(&alone_each),
@@ -388,6 +431,11 @@ impl MethodRow {
 pub fn sweep_command(args: &SweepArgs) -> Result<String, CliError> {
     let device = burn::tensor::Device::flex();
     let model = train::load_model(&args.weights, &device)?;
+    let bands = load_bands(args.band_weights.as_deref(), &device)?;
+    let nets = Nets {
+        cells: &model,
+        bands: bands.as_ref(),
+    };
     let records = decoded_split(&args.data, false, usize::MAX)?;
     if records.is_empty() {
         return Err(CliError::Option(format!(
@@ -398,7 +446,7 @@ pub fn sweep_command(args: &SweepArgs) -> Result<String, CliError> {
         )));
     }
     let pitch = read_pitch_index(args.pitch_index.as_deref())?;
-    let (points, cents) = metrics::sweep(&model, &pitch, &records, &device);
+    let (points, cents) = metrics::sweep(nets, &pitch, &records, &device);
     let mut out = format!(
         "{} objects; masks (pitch at near-twin distance {}):\n\
          threshold  presence  recall  precision     F1  amplitude MSE\n",

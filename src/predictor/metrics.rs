@@ -13,7 +13,6 @@
 
 use super::bands::{band_edges_hz, BandEncoding, BANDS};
 use super::dataset::Record;
-use super::network::ModeNet;
 use super::pitch_index::PitchIndex;
 use burn::tensor::Device;
 
@@ -183,17 +182,17 @@ pub fn summarise(scores: &[ObjectScore]) -> Metrics {
 /// one), its band frequencies from `pitch` where given (as [`super::Predictor`] plays them)
 /// or from its own head.
 pub fn evaluate(
-    model: &ModeNet,
+    nets: super::Nets<'_>,
     pitch: Option<&PitchIndex>,
     records: &[Record],
     device: &Device,
 ) -> Metrics {
-    summarise(&evaluate_each(model, pitch, records, device))
+    summarise(&evaluate_each(nets, pitch, records, device))
 }
 
 /// [`evaluate`]'s per-object scores, in the order of `records`.
 pub fn evaluate_each(
-    model: &ModeNet,
+    nets: super::Nets<'_>,
     pitch: Option<&PitchIndex>,
     records: &[Record],
     device: &Device,
@@ -201,7 +200,7 @@ pub fn evaluate_each(
     let mut scores = Vec::with_capacity(records.len());
     for chunk in records.chunks(8) {
         let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
-        let predicted = super::predict_batch(model, &grids, device);
+        let predicted = super::predict_batch(nets, &grids, device);
         for (mut p, r) in predicted.into_iter().zip(chunk) {
             if let Some(index) = pitch {
                 p.retune(index, &r.grid);
@@ -244,7 +243,7 @@ impl SweepPoint {
 /// `NEAR_TWIN_DISTANCE` are chosen, on objects of the training families that training never
 /// saw (never on the held-out families). The network runs once per record.
 pub fn sweep(
-    model: &ModeNet,
+    nets: super::Nets<'_>,
     pitch: &PitchIndex,
     records: &[Record],
     device: &Device,
@@ -254,7 +253,7 @@ pub fn sweep(
     let mut cents: Vec<Vec<f64>> = vec![Vec::new(); SWEEP_TWIN.len()];
     for chunk in records.chunks(8) {
         let grids: Vec<&crate::shape::VoxelGrid> = chunk.iter().map(|r| &r.grid).collect();
-        let predicted = super::predict_batch(model, &grids, device);
+        let predicted = super::predict_batch(nets, &grids, device);
         for (mut p, r) in predicted.into_iter().zip(chunk) {
             let found = pitch.query(&r.grid);
             for (&twin_at, cents) in SWEEP_TWIN.iter().zip(cents.iter_mut()) {
@@ -359,7 +358,10 @@ mod tests {
         use crate::fem::ElementKind;
         use crate::predictor::dataset;
         let device = Device::flex();
-        let model = ModeNet::new(crate::predictor::network::Widths::SHIPPED, &device);
+        let model = crate::predictor::network::ModeNet::new(
+            crate::predictor::network::Widths::SHIPPED,
+            &device,
+        );
         // Two training-family objects (modes in the bands at the reference size).
         let records: Vec<Record> = (0..2)
             .map(|i| {
@@ -368,8 +370,8 @@ mod tests {
             })
             .collect();
         let index = PitchIndex::from_labels([(&records[0].grid, &records[0].labels)]);
-        let want = evaluate(&model, Some(&index), &records, &device);
-        let (points, cents) = sweep(&model, &index, &records, &device);
+        let want = evaluate((&model).into(), Some(&index), &records, &device);
+        let (points, cents) = sweep((&model).into(), &index, &records, &device);
         let at = points
             .iter()
             .find(|p| {

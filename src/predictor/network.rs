@@ -32,8 +32,9 @@
 //! width = x, so a flattened volume is indexed `x + n (y + n z)` as [`super::bands`] indexes
 //! its cells.
 
+use super::band_net::BandNet;
 use super::bands::{BANDS, CELLS_PER_AXIS, DIRECTIONS, INPUT_SIDE};
-use burn::module::Module;
+use burn::module::{Module, Param};
 use burn::nn::conv::{Conv3d, Conv3dConfig, ConvTranspose3d, ConvTranspose3dConfig};
 use burn::nn::{Linear, LinearConfig, PaddingConfig3d};
 use burn::tensor::activation::{relu, sigmoid};
@@ -103,7 +104,7 @@ pub struct Trunk {
     pub band_position: Tensor<2>,
 }
 
-fn conv(channels: [usize; 2], kernel: usize, stride: usize, device: &Device) -> Conv3d {
+pub(super) fn conv(channels: [usize; 2], kernel: usize, stride: usize, device: &Device) -> Conv3d {
     let pad = if kernel == 3 { 1 } else { 0 };
     Conv3dConfig::new(channels, [kernel; 3])
         .with_stride([stride; 3])
@@ -128,9 +129,7 @@ impl ModeNet {
             head_in,
         } = widths;
         Self {
-            patch: Conv3dConfig::new([1, c16], [2; 3])
-                .with_stride([2; 3])
-                .init(device),
+            patch: patch_conv(c16, device),
             down8: conv([c16, c8], 3, 2, device),
             down4: conv([c8, c4], 3, 2, device),
             res_a: conv([c4, c4], 3, 1, device),
@@ -149,22 +148,15 @@ impl ModeNet {
     /// The per-shape part: `fills` is `[batch, 1, 32, 32, 32]` (fill fractions, 0 outside).
     pub fn trunk(&self, fills: Tensor<5>) -> Trunk {
         let [batch, _, _, _, _] = fills.dims();
-        let shape = descriptors(&fills);
-        let f16 = relu(self.patch.forward(fills));
-        let f8 = relu(self.down8.forward(f16.clone()));
-        let f4 = relu(self.down4.forward(f8.clone()));
-        let r = relu(self.res_a.forward(f4.clone()));
-        let f4 = relu(f4 + self.res_b.forward(r));
+        let (encoded, pooled) = Encoder {
+            patch: &self.patch,
+            down8: &self.down8,
+            down4: &self.down4,
+            res: [&self.res_a, &self.res_b],
+        }
+        .forward(fills);
+        let [f16, f8, f4] = encoded;
         let c4 = f4.dims()[1];
-        let flat: Tensor<3> = f4.clone().reshape([batch, c4, 64]);
-        let pooled: Tensor<2> = Tensor::cat(
-            vec![
-                flat.clone().mean_dim(2).reshape([batch, c4]),
-                flat.max_dim(2).reshape([batch, c4]),
-                shape,
-            ],
-            1,
-        );
         let g = relu(self.global_hidden.forward(pooled));
         let bands = self.global_bands.forward(g.clone());
         let band_logit = bands.clone().narrow(1, 0, BANDS);
@@ -179,6 +171,32 @@ impl ModeNet {
             band_logit,
             band_position,
         }
+    }
+
+    /// The band network this network's presence branch is: its encoder, its global hidden
+    /// layer and the presence half of its band outputs (the position half dropped). It gives
+    /// [`Trunk::band_logit`] exactly; a `train --bands-only` run of this network's kind (stop
+    /// 77's) is kept as the band network this makes.
+    pub fn band_net(&self) -> BandNet {
+        let bands = &self.global_bands;
+        let presence = Linear {
+            weight: Param::from_tensor(bands.weight.val().narrow(1, 0, BANDS)),
+            bias: bands
+                .bias
+                .as_ref()
+                .map(|b| Param::from_tensor(b.val().narrow(0, 0, BANDS))),
+        };
+        BandNet::from_layers(
+            [
+                self.patch.clone(),
+                self.down8.clone(),
+                self.down4.clone(),
+                self.res_a.clone(),
+                self.res_b.clone(),
+            ],
+            self.global_hidden.clone(),
+            presence,
+        )
     }
 
     /// The per-cell head over the whole 16^3 grid: `[batch, OUT_CHANNELS, 16, 16, 16]`, the
@@ -243,6 +261,49 @@ impl ModeNet {
     }
 }
 
+/// The encoder [`ModeNet`] and [`super::band_net::BandNet`] share: the patch convolution to
+/// 16^3, the strided ones to 8^3 and 4^3, the residual block at 4^3, and the global branch's
+/// input (mean and max over the 4^3 features, beside the [`descriptors`]). Each network owns
+/// its layers (their names are the weights files' keys); this is the arithmetic.
+pub(super) struct Encoder<'a> {
+    pub patch: &'a Conv3d,
+    pub down8: &'a Conv3d,
+    pub down4: &'a Conv3d,
+    pub res: [&'a Conv3d; 2],
+}
+
+impl Encoder<'_> {
+    /// The features at 16^3, 8^3 and 4^3, and the global branch's input
+    /// `[batch, 2 c4 + DESCRIPTORS]`.
+    pub fn forward(&self, fills: Tensor<5>) -> ([Tensor<5>; 3], Tensor<2>) {
+        let [batch, _, _, _, _] = fills.dims();
+        let shape = descriptors(&fills);
+        let f16 = relu(self.patch.forward(fills));
+        let f8 = relu(self.down8.forward(f16.clone()));
+        let f4 = relu(self.down4.forward(f8.clone()));
+        let r = relu(self.res[0].forward(f4.clone()));
+        let f4 = relu(f4 + self.res[1].forward(r));
+        let c4 = f4.dims()[1];
+        let flat: Tensor<3> = f4.clone().reshape([batch, c4, 64]);
+        let pooled: Tensor<2> = Tensor::cat(
+            vec![
+                flat.clone().mean_dim(2).reshape([batch, c4]),
+                flat.max_dim(2).reshape([batch, c4]),
+                shape,
+            ],
+            1,
+        );
+        ([f16, f8, f4], pooled)
+    }
+}
+
+/// The patch convolution: 2x2x2 cells of the 32^3 input to one 16^3 cell.
+pub(super) fn patch_conv(c16: usize, device: &Device) -> Conv3d {
+    Conv3dConfig::new([1, c16], [2; 3])
+        .with_stride([2; 3])
+        .init(device)
+}
+
 /// The shape descriptors of a batch of fills `[batch, 1, n, n, n]`: `[batch, DESCRIPTORS]`,
 /// natural logarithms of the volume (voxels), the exposed faces, the mean wall thickness
 /// `2 V / faces` (voxels: a plate's thickness) and the longest, middle and shortest extents
@@ -284,7 +345,7 @@ pub fn descriptors(fills: &Tensor<5>) -> Tensor<2> {
 
 /// Binary cross-entropy from logits, elementwise, in the stable form
 /// `max(x, 0) - x y + log(1 + exp(-|x|))`.
-fn bce_with_logits<const D: usize>(x: Tensor<D>, y: Tensor<D>) -> Tensor<D> {
+pub(super) fn bce_with_logits<const D: usize>(x: Tensor<D>, y: Tensor<D>) -> Tensor<D> {
     x.clone().clamp_min(0.0) - x.clone() * y + x.abs().neg().exp().log1p()
 }
 
