@@ -13,7 +13,9 @@
 //! - a global branch (mean and max over the 4^3 features, beside [`DESCRIPTORS`] shape
 //!   descriptors) predicts, per band, whether it holds a mode and where in the band its
 //!   strongest mode lies, and conditions the decoder (a mode's band is a property of the whole
-//!   shape);
+//!   shape). Since stop 77 the product takes the bands' presence from
+//!   [`super::band_net::BandNet`], the same encoder and global branch trained on presence
+//!   alone, and this network's presence logits are a training signal for its head;
 //! - two transposed convolutions come back to 16^3, adding the encoder's features at each
 //!   scale; a 1x1 head gives, per cell, [`OUT_CHANNELS`] = 3 directions x 32 bands of mask
 //!   logits, then as many log-amplitudes. A cell's mask logit is the head's plus its band's
