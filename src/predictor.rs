@@ -112,8 +112,8 @@ pub const NEIGHBOUR_PRESENCE_LOGIT: f32 = 0.0;
 /// often. The same with the band network (stop 77), whose presence the pitch does not see.
 pub const NEAR_TWIN_DISTANCE: f32 = 0.01;
 
-/// The trained network, ready to predict on the CPU, and the pitch index that gives its bands'
-/// frequencies ([`pitch_index`]).
+/// The trained networks, ready to predict on the CPU (the cell network and the band network,
+/// [`Nets`]), and the pitch index that gives their bands' frequencies ([`pitch_index`]).
 pub struct Predictor {
     model: ModeNet,
     bands: Option<BandNet>,
@@ -128,8 +128,9 @@ impl std::fmt::Debug for Predictor {
 }
 
 impl Predictor {
-    /// Loads burnpack weights (`model.bpk` of a `modalforge train` checkpoint) from memory;
-    /// `name` says where they came from, for the error.
+    /// Loads burnpack weights (`model.bpk` of a `modalforge train` checkpoint) from memory,
+    /// beside the shipped band network and pitch index; `name` says where they came from, for
+    /// the error.
     pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, PredictorError> {
         let weights =
             |e: &dyn std::fmt::Display| PredictorError::Weights(name.into(), e.to_string());
@@ -141,7 +142,7 @@ impl Predictor {
         let model = ModeNet::new(network::Widths::SHIPPED, &device)
             .try_load_record(record)
             .map_err(|e| weights(&e))?;
-        let bands = band_net_from_bytes(SHIPPED_BAND_WEIGHTS, "assets/predictor/bandnet.bpk")?;
+        let bands = shipped_band_net()?;
         let pitch = shipped_pitch_index().map_err(|e| {
             PredictorError::Weights("assets/predictor/pitch-index.bin".into(), e.to_string())
         })?;
@@ -155,7 +156,7 @@ impl Predictor {
 
     /// Wraps a network in memory (tests, and scoring a checkpoint without a file), with the
     /// pitch index `pitch` (`None`: the network's own band frequencies) and no band network
-    /// (the cell network's own band presence; [`Predictor::with_bands`] adds one).
+    /// (the cell network's own band presence).
     pub fn from_model(model: ModeNet, pitch: Option<Arc<PitchIndex>>) -> Self {
         Self {
             model,
@@ -163,12 +164,6 @@ impl Predictor {
             device: Device::flex(),
             pitch,
         }
-    }
-
-    /// The same predictor with `bands` deciding which bands hold a mode (`None`: the cell
-    /// network's own presence branch).
-    pub fn with_bands(self, bands: Option<BandNet>) -> Self {
-        Self { bands, ..self }
     }
 
     /// The weights shipped in the repository (`assets/predictor/modenet.bpk`, compiled in;

@@ -112,9 +112,10 @@ mod tests {
 
     #[test]
     fn a_band_net_with_the_cell_networks_layers_gives_its_presence_logits() {
-        // The two networks share the encoder arithmetic; a band network carrying a cell
-        // network's encoder and global layers must give that network's band logits exactly
-        // (a wrong layer order, pooling or descriptor in either would not).
+        // The two networks share the encoder arithmetic (`network::Encoder`); a band network
+        // carrying a cell network's encoder and global layers must give that network's band
+        // logits exactly (the position half of the outputs kept instead of the presence
+        // half, a layer swapped or an activation missing in either would not).
         let device = Device::flex();
         let cells = ModeNet::new(Widths::SHIPPED, &device);
         let bands = cells.band_net();

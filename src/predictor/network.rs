@@ -177,8 +177,8 @@ impl ModeNet {
 
     /// The band network this network's presence branch is: its encoder, its global hidden
     /// layer and the presence half of its band outputs (the position half dropped). It gives
-    /// [`Trunk::band_logit`] exactly; a `train --bands-only` run of this network's kind (stop
-    /// 77's) is kept as the band network this makes.
+    /// [`Trunk::band_logit`] exactly. Stop 77's shipped band network was made this way, from
+    /// a cell network trained on the presence loss alone (`assets/predictor/README.md`).
     pub fn band_net(&self) -> BandNet {
         let bands = &self.global_bands;
         let presence = Linear {

@@ -250,7 +250,7 @@ fn presence_batch(records: &[(&Record, Perm)], device: &Device) -> (Tensor<5>, T
             r.labels
                 .band_log_hz
                 .iter()
-                .map(|f| f64::from(f.is_some() as u8) as f32),
+                .map(|f| f32::from(u8::from(f.is_some()))),
         );
     }
     (
@@ -272,12 +272,14 @@ pub fn presence_score(net: &BandNet, records: &[Record], device: &Device) -> Pre
                 .into_scalar::<f32>(),
         );
         let logits = logits.into_data().try_to_vec::<f32>().expect("f32");
-        let present = present.into_data().try_to_vec::<f32>().expect("f32");
-        for (l, p) in logits.iter().zip(&present) {
-            let (on, held) = (*l > 0.0, *p > 0.5);
-            hits += (on && held) as usize;
-            truths += held as usize;
-            calls += on as usize;
+        // Recall and precision against the labels themselves, not the training targets.
+        for (r, row) in chunk.iter().zip(logits.chunks_exact(BANDS)) {
+            for (l, f) in row.iter().zip(&r.labels.band_log_hz) {
+                let (on, held) = (*l > 0.0, f.is_some());
+                hits += (on && held) as usize;
+                truths += held as usize;
+                calls += on as usize;
+            }
         }
         count += logits.len();
     }
