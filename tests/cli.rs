@@ -701,6 +701,42 @@ fn the_dataset_is_reproducible_and_resumes() {
         !o.status.success() && err.contains("no training records under"),
         "{err}"
     );
+    // The band network trains on its own (one epoch of the two training objects, the held-out
+    // one scored), the eval takes its weights, and a resumed run that forgets --bands-only is
+    // told so instead of failing to read the checkpoint.
+    let bands = a.path().join("bands");
+    let train = |extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            "--data",
+            a_dir,
+            "--out",
+            bands.to_str().unwrap(),
+            "--batch",
+            "2",
+            "--validate",
+            "1",
+            "--threads",
+            "1",
+        ];
+        args.extend_from_slice(extra);
+        modalforge(&args)
+    };
+    let o = train(&["--bands-only", "--epochs", "1"]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && said.contains("band network weights in") && said.contains("recall"),
+        "{said}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let band_weights = bands.join("model.bpk");
+    assert!(eval(&["--band-weights", band_weights.to_str().unwrap()]).contains("network:"));
+    let o = train(&["--epochs", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("this run trains the band network: add --bands-only"),
+        "{err}"
+    );
 }
 
 /// Piped into a reader that quits (`modalforge modes ... | head -1`), the command ends quietly

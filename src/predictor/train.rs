@@ -74,6 +74,9 @@ pub struct RunState {
     pub seconds: f64,
     /// The validation metrics after each epoch.
     pub history: Vec<EpochReport>,
+    /// Whether the run trains the band network (`--bands-only`); a resumed run must agree.
+    #[serde(default)]
+    pub bands_only: bool,
 }
 
 /// One epoch's summary.
@@ -434,6 +437,18 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         Ok(bytes) => serde_json::from_slice(&bytes).map_err(|e| checkpoint_err(&state_path, e))?,
         Err(_) => RunState::default(),
     };
+    if state.epoch > 0 && state.bands_only != options.bands_only {
+        let (this, fix) = if state.bands_only {
+            ("the band network", "add --bands-only")
+        } else {
+            ("the cell network", "drop --bands-only")
+        };
+        return Err(checkpoint_err(
+            &state_path,
+            format!("this run trains {this}: {fix}, or give another --out"),
+        ));
+    }
+    state.bands_only = options.bands_only;
     if options.bands_only {
         return train_bands(options, &train, &held, state);
     }
