@@ -22,7 +22,7 @@
 //! (Deep-Modal eq. 8's mask term, per band instead of per cell).
 
 use super::bands::BANDS;
-use super::network::{bce_with_logits, conv, patch_conv, Encoder, Widths, DESCRIPTORS};
+use super::network::{bce_with_logits, encoder_layers, global_hidden, Encoder, Widths};
 use burn::module::Module;
 use burn::nn::conv::Conv3d;
 use burn::nn::{Linear, LinearConfig};
@@ -46,22 +46,11 @@ impl BandNet {
     /// A freshly initialised network (random weights, burn's default initialisers), with the
     /// encoder and global widths of `widths` (the decoder's are unused).
     pub fn new(widths: Widths, device: &Device) -> Self {
-        let Widths {
-            c16,
-            c8,
-            c4,
-            global,
-            ..
-        } = widths;
-        Self {
-            patch: patch_conv(c16, device),
-            down8: conv([c16, c8], 3, 2, device),
-            down4: conv([c8, c4], 3, 2, device),
-            res_a: conv([c4, c4], 3, 1, device),
-            res_b: conv([c4, c4], 3, 1, device),
-            global_hidden: LinearConfig::new(2 * c4 + DESCRIPTORS, global).init(device),
-            global_bands: LinearConfig::new(global, BANDS).init(device),
-        }
+        Self::from_layers(
+            encoder_layers(widths, device),
+            global_hidden(widths, device),
+            LinearConfig::new(widths.global, BANDS).init(device),
+        )
     }
 
     /// A band network of given layers ([`ModeNet::band_net`](super::network::ModeNet::band_net)).

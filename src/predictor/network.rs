@@ -106,7 +106,7 @@ pub struct Trunk {
     pub band_position: Tensor<2>,
 }
 
-pub(super) fn conv(channels: [usize; 2], kernel: usize, stride: usize, device: &Device) -> Conv3d {
+fn conv(channels: [usize; 2], kernel: usize, stride: usize, device: &Device) -> Conv3d {
     let pad = if kernel == 3 { 1 } else { 0 };
     Conv3dConfig::new(channels, [kernel; 3])
         .with_stride([stride; 3])
@@ -130,13 +130,14 @@ impl ModeNet {
             global,
             head_in,
         } = widths;
+        let [patch, down8, down4, res_a, res_b] = encoder_layers(widths, device);
         Self {
-            patch: patch_conv(c16, device),
-            down8: conv([c16, c8], 3, 2, device),
-            down4: conv([c8, c4], 3, 2, device),
-            res_a: conv([c4, c4], 3, 1, device),
-            res_b: conv([c4, c4], 3, 1, device),
-            global_hidden: LinearConfig::new(2 * c4 + DESCRIPTORS, global).init(device),
+            patch,
+            down8,
+            down4,
+            res_a,
+            res_b,
+            global_hidden: global_hidden(widths, device),
             global_bands: LinearConfig::new(global, 2 * BANDS).init(device),
             global_film: LinearConfig::new(global, c4).init(device),
             up8: up([c4, c8], device),
@@ -299,11 +300,24 @@ impl Encoder<'_> {
     }
 }
 
-/// The patch convolution: 2x2x2 cells of the 32^3 input to one 16^3 cell.
-pub(super) fn patch_conv(c16: usize, device: &Device) -> Conv3d {
-    Conv3dConfig::new([1, c16], [2; 3])
-        .with_stride([2; 3])
-        .init(device)
+/// Freshly initialised [`Encoder`] layers: the patch convolution (2x2x2 cells of the 32^3
+/// input to one 16^3 cell), the strided convolutions to 8^3 and 4^3, the residual block's two.
+pub(super) fn encoder_layers(widths: Widths, device: &Device) -> [Conv3d; 5] {
+    let Widths { c16, c8, c4, .. } = widths;
+    [
+        Conv3dConfig::new([1, c16], [2; 3])
+            .with_stride([2; 3])
+            .init(device),
+        conv([c16, c8], 3, 2, device),
+        conv([c8, c4], 3, 2, device),
+        conv([c4, c4], 3, 1, device),
+        conv([c4, c4], 3, 1, device),
+    ]
+}
+
+/// A freshly initialised global hidden layer: pooled features and descriptors in.
+pub(super) fn global_hidden(widths: Widths, device: &Device) -> Linear {
+    LinearConfig::new(2 * widths.c4 + DESCRIPTORS, widths.global).init(device)
 }
 
 /// The shape descriptors of a batch of fills `[batch, 1, n, n, n]`: `[batch, DESCRIPTORS]`,

@@ -325,6 +325,26 @@ fn save_checkpoint<M: Module>(
     std::fs::write(&state_path, json).map_err(|e| TrainError::Io(state_path.clone(), e))
 }
 
+/// The network and optimiser a run starts from: its checkpoint's once it has finished an epoch,
+/// fresh ones before.
+fn start_from<M>(
+    state: &RunState,
+    out: &Path,
+    load: impl FnOnce(&Path) -> Result<M, TrainError>,
+    fresh: impl FnOnce() -> M,
+) -> Result<(M, ModuleOptimizer), TrainError> {
+    if state.epoch == 0 {
+        return Ok((fresh(), AdamConfig::new().init()));
+    }
+    eprintln!("resuming after epoch {}", state.epoch);
+    let (model_path, optim_path, _) = checkpoint_paths(out);
+    let optim = AdamConfig::new()
+        .init()
+        .load(&optim_path)
+        .map_err(|e| checkpoint_err(&optim_path, e))?;
+    Ok((load(&model_path)?, optim))
+}
+
 fn checkpoint_paths(out: &Path) -> (PathBuf, PathBuf, PathBuf) {
     (
         out.join("model.bpk"),
@@ -341,19 +361,12 @@ fn train_bands(
     mut state: RunState,
 ) -> Result<RunState, TrainError> {
     let device = Device::flex().autodiff();
-    let (model_path, optim_path, _) = checkpoint_paths(&options.out);
-    let (mut model, mut optim) = if state.epoch > 0 {
-        let optim = AdamConfig::new()
-            .init()
-            .load(&optim_path)
-            .map_err(|e| checkpoint_err(&optim_path, e))?;
-        (load_band_net(&model_path, &device)?, optim)
-    } else {
-        (
-            BandNet::new(Widths::SHIPPED, &device),
-            AdamConfig::new().init(),
-        )
-    };
+    let (mut model, mut optim) = start_from(
+        &state,
+        &options.out,
+        |path| load_band_net(path, &device),
+        || BandNet::new(Widths::SHIPPED, &device),
+    )?;
     let mut order: Vec<usize> = (0..train.len()).collect();
     while state.epoch < options.epochs {
         let epoch = state.epoch + 1;
@@ -432,7 +445,7 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         held.len()
     );
     std::fs::create_dir_all(&options.out).map_err(|e| TrainError::Io(options.out.clone(), e))?;
-    let (model_path, optim_path, state_path) = checkpoint_paths(&options.out);
+    let (_, _, state_path) = checkpoint_paths(&options.out);
     let mut state: RunState = match std::fs::read(&state_path) {
         Ok(bytes) => serde_json::from_slice(&bytes).map_err(|e| checkpoint_err(&state_path, e))?,
         Err(_) => RunState::default(),
@@ -452,20 +465,12 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
     if options.bands_only {
         return train_bands(options, &train, &held, state);
     }
-    let (mut model, mut optim): (ModeNet, ModuleOptimizer) = if state.epoch > 0 {
-        eprintln!("resuming after epoch {}", state.epoch);
-        let model = load_model(&model_path, &device)?;
-        let optim = AdamConfig::new()
-            .init()
-            .load(&optim_path)
-            .map_err(|e| checkpoint_err(&optim_path, e))?;
-        (model, optim)
-    } else {
-        (
-            ModeNet::new(Widths::SHIPPED, &device),
-            AdamConfig::new().init(),
-        )
-    };
+    let (mut model, mut optim) = start_from(
+        &state,
+        &options.out,
+        |path| load_model(path, &device),
+        || ModeNet::new(Widths::SHIPPED, &device),
+    )?;
     let mut order: Vec<usize> = (0..train.len()).collect();
     while state.epoch < options.epochs {
         let epoch = state.epoch + 1;
@@ -573,20 +578,25 @@ mod tests {
         assert_eq!(input.iter().sum::<f32>(), 10.0);
     }
 
-    #[test]
-    fn training_lowers_the_loss_on_real_labels() {
-        // Two FEM-labelled objects (a bar and a plate, well inside the bands): 30 Adam steps
-        // must at least halve the loss from its random start (a broken gradient path, target
-        // layout or optimiser step would not).
+    /// Two FEM-labelled objects (hex8i), a bar and a plate, with modes well inside the bands.
+    fn a_bar_and_a_plate() -> Vec<Record> {
         let bar = VoxelGrid::from_fn([30, 6, 4], 1.0, |_, _, _| true).unwrap();
         let plate = VoxelGrid::from_fn([24, 20, 2], 1.0, |_, _, _| true).unwrap();
-        let labelled: Vec<Record> = [bar, plate]
+        [bar, plate]
             .into_iter()
             .map(|g| {
                 Record::label(Family::Solid, g, crate::fem::ElementKind::Hex8Incompatible)
                     .expect("labels")
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn training_lowers_the_loss_on_real_labels() {
+        // Two FEM-labelled objects (a bar and a plate, well inside the bands): 30 Adam steps
+        // must at least halve the loss from its random start (a broken gradient path, target
+        // layout or optimiser step would not).
+        let labelled = a_bar_and_a_plate();
         let records: Vec<(&Record, Perm)> = labelled.iter().map(|r| (r, PERMS[0])).collect();
         assert!(records
             .iter()
@@ -612,15 +622,7 @@ mod tests {
         // presence cross-entropy from its random start (about ln 2) to under a third of it,
         // and then every band of both objects is called right at logit 0 (a broken target
         // layout, loss or gradient path would not get there).
-        let bar = VoxelGrid::from_fn([30, 6, 4], 1.0, |_, _, _| true).unwrap();
-        let plate = VoxelGrid::from_fn([24, 20, 2], 1.0, |_, _, _| true).unwrap();
-        let labelled: Vec<Record> = [bar, plate]
-            .into_iter()
-            .map(|g| {
-                Record::label(Family::Solid, g, crate::fem::ElementKind::Hex8Incompatible)
-                    .expect("labels")
-            })
-            .collect();
+        let labelled = a_bar_and_a_plate();
         let items: Vec<(&Record, Perm)> = labelled.iter().map(|r| (r, PERMS[0])).collect();
         let device = Device::flex().autodiff();
         let mut model = BandNet::new(Widths::SHIPPED, &device);
