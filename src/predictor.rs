@@ -439,8 +439,12 @@ pub fn predict_batch(
         fills.extend(train::input_of(g, [0, 1, 2]));
     }
     let input = Tensor::<5>::from_data(TensorData::new(fills, [b, 1, n, n, n]), device);
-    let band_logit = nets.bands.map(|bands| bands.logits(input.clone()));
-    let trunk = nets.cells.trunk(input);
+    // Both networks read the same descriptors: counted once.
+    let shape = network::descriptors(&input);
+    let band_logit = nets
+        .bands
+        .map(|bands| bands.logits_with(input.clone(), shape.clone()));
+    let trunk = nets.cells.trunk_with(input, shape);
     let (weights, bias) = nets.cells.head_matrix();
     let features = trunk.features.into_data().try_to_vec::<f32>().expect("f32");
     let presence = band_logit

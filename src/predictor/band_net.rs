@@ -22,7 +22,9 @@
 //! (Deep-Modal eq. 8's mask term, per band instead of per cell).
 
 use super::bands::BANDS;
-use super::network::{bce_with_logits, encoder_layers, global_hidden, Encoder, Widths};
+use super::network::{
+    bce_with_logits, descriptors, encoder_layers, global_hidden, Encoder, Widths,
+};
 use burn::module::Module;
 use burn::nn::conv::Conv3d;
 use burn::nn::{Linear, LinearConfig};
@@ -74,13 +76,20 @@ impl BandNet {
     /// Per band, the logit that it holds a mode: `fills` `[batch, 1, 32, 32, 32]` in,
     /// `[batch, BANDS]` out.
     pub fn logits(&self, fills: Tensor<5>) -> Tensor<2> {
+        let shape = descriptors(&fills);
+        self.logits_with(fills, shape)
+    }
+
+    /// [`BandNet::logits`] with the fills' [`descriptors`] given (computed once where the cell
+    /// network reads the same fills).
+    pub fn logits_with(&self, fills: Tensor<5>, shape: Tensor<2>) -> Tensor<2> {
         let (_, pooled) = Encoder {
             patch: &self.patch,
             down8: &self.down8,
             down4: &self.down4,
             res: [&self.res_a, &self.res_b],
         }
-        .forward(fills);
+        .forward(fills, shape);
         self.global_bands
             .forward(relu(self.global_hidden.forward(pooled)))
     }

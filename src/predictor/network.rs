@@ -150,6 +150,13 @@ impl ModeNet {
 
     /// The per-shape part: `fills` is `[batch, 1, 32, 32, 32]` (fill fractions, 0 outside).
     pub fn trunk(&self, fills: Tensor<5>) -> Trunk {
+        let shape = descriptors(&fills);
+        self.trunk_with(fills, shape)
+    }
+
+    /// [`ModeNet::trunk`] with the fills' [`descriptors`] given (computed once where the band
+    /// network reads the same fills: 0.3 ms a shape).
+    pub fn trunk_with(&self, fills: Tensor<5>, shape: Tensor<2>) -> Trunk {
         let [batch, _, _, _, _] = fills.dims();
         let (encoded, pooled) = Encoder {
             patch: &self.patch,
@@ -157,7 +164,7 @@ impl ModeNet {
             down4: &self.down4,
             res: [&self.res_a, &self.res_b],
         }
-        .forward(fills);
+        .forward(fills, shape);
         let [f16, f8, f4] = encoded;
         let c4 = f4.dims()[1];
         let g = relu(self.global_hidden.forward(pooled));
@@ -277,10 +284,9 @@ pub(super) struct Encoder<'a> {
 
 impl Encoder<'_> {
     /// The features at 16^3, 8^3 and 4^3, and the global branch's input
-    /// `[batch, 2 c4 + DESCRIPTORS]`.
-    pub fn forward(&self, fills: Tensor<5>) -> ([Tensor<5>; 3], Tensor<2>) {
+    /// `[batch, 2 c4 + DESCRIPTORS]`; `shape` is the fills' [`descriptors`].
+    pub fn forward(&self, fills: Tensor<5>, shape: Tensor<2>) -> ([Tensor<5>; 3], Tensor<2>) {
         let [batch, _, _, _, _] = fills.dims();
-        let shape = descriptors(&fills);
         let f16 = relu(self.patch.forward(fills));
         let f8 = relu(self.down8.forward(f16.clone()));
         let f4 = relu(self.down4.forward(f8.clone()));
