@@ -293,6 +293,19 @@ pub fn presence_score(net: &BandNet, records: &[Record], device: &Device) -> Pre
     }
 }
 
+/// The training objects `chunk` indexes, each under a random axis permutation (the module
+/// docs' augmentation).
+fn augmented<'a>(
+    train: &'a [Record],
+    chunk: &[usize],
+    rng: &mut SplitMix64,
+) -> Vec<(&'a Record, Perm)> {
+    chunk
+        .iter()
+        .map(|&i| (&train[i], PERMS[rng.below(PERMS.len())]))
+        .collect()
+}
+
 /// This epoch's learning rate (halved every `halve_every` epochs) and its shuffle of `order`.
 fn start_epoch(options: &TrainOptions, epoch: usize, order: &mut [usize]) -> (f64, SplitMix64) {
     let lr = options.learning_rate * 0.5f64.powi(((epoch - 1) / options.halve_every.max(1)) as i32);
@@ -374,10 +387,7 @@ fn train_bands(
         let t0 = Instant::now();
         let (mut sum, mut steps) = (0.0f64, 0usize);
         for chunk in order.chunks(options.batch.max(1)) {
-            let items: Vec<(&Record, Perm)> = chunk
-                .iter()
-                .map(|&i| (&train[i], PERMS[rng.below(6)]))
-                .collect();
+            let items = augmented(train, chunk, &mut rng);
             let (fills, present) = presence_batch(&items, &device);
             let loss = model.loss(fills, present);
             let value: f32 = loss.clone().into_scalar();
@@ -479,10 +489,7 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
         let (mut sum, mut steps) = (0.0f64, 0usize);
         let batches = order.len().div_ceil(options.batch.max(1));
         for (k, chunk) in order.chunks(options.batch.max(1)).enumerate() {
-            let items: Vec<(&Record, Perm)> = chunk
-                .iter()
-                .map(|&i| (&train[i], PERMS[rng.below(6)]))
-                .collect();
+            let items = augmented(&train, chunk, &mut rng);
             let (fills, targets) = batch_tensors(&items, &device);
             let losses = model.loss(fills, &targets);
             let loss = losses.total();
