@@ -705,13 +705,13 @@ fn the_dataset_is_reproducible_and_resumes() {
     // one scored), the eval takes its weights, and a resumed run that forgets --bands-only is
     // told so instead of failing to read the checkpoint.
     let bands = a.path().join("bands");
-    let train = |extra: &[&str]| {
+    let train = |out: &Path, extra: &[&str]| {
         let mut args = vec![
             "train",
             "--data",
             a_dir,
             "--out",
-            bands.to_str().unwrap(),
+            out.to_str().unwrap(),
             "--batch",
             "2",
             "--validate",
@@ -722,7 +722,7 @@ fn the_dataset_is_reproducible_and_resumes() {
         args.extend_from_slice(extra);
         modalforge(&args)
     };
-    let o = train(&["--bands-only", "--epochs", "1"]);
+    let o = train(&bands, &["--bands-only", "--epochs", "1"]);
     let said = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success() && said.contains("band network weights in") && said.contains("recall"),
@@ -731,7 +731,32 @@ fn the_dataset_is_reproducible_and_resumes() {
     );
     let band_weights = bands.join("model.bpk");
     assert!(eval(&["--band-weights", band_weights.to_str().unwrap()]).contains("network:"));
-    let o = train(&["--epochs", "2"]);
+    // Fine-tuning: a new run starts from those weights, on both datasets' training splits
+    // (two objects each, so two steps of two).
+    let tuned = a.path().join("tuned");
+    let o = train(
+        &tuned,
+        &[
+            "--data",
+            b_dir,
+            "--init",
+            band_weights.to_str().unwrap(),
+            "--bands-only",
+            "--epochs",
+            "1",
+        ],
+    );
+    let (said, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(
+        o.status.success()
+            && err.contains("starting from the weights in")
+            && said.contains("1 epochs, 2 steps"),
+        "{said}{err}"
+    );
+    let o = train(&bands, &["--epochs", "2"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && err.contains("this run trains the band network: add --bands-only"),

@@ -17,9 +17,10 @@ use std::sync::Arc;
 /// Options of `modalforge train`.
 #[derive(clap::Args, Debug)]
 pub struct TrainArgs {
-    /// Dataset directory (made by `modalforge dataset`).
-    #[arg(long, value_name = "DIR")]
-    pub data: PathBuf,
+    /// Dataset directory (made by `modalforge dataset`); give it more than once to train on
+    /// several datasets (made with different seeds, labelled with one element).
+    #[arg(long, value_name = "DIR", required = true)]
+    pub data: Vec<PathBuf>,
     /// Checkpoint directory: model.bpk, optimizer.bpk, state.json (a run resumes from it).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -48,6 +49,10 @@ pub struct TrainArgs {
     /// band presence alone, instead of the cell network (`modenet.bpk`).
     #[arg(long)]
     pub bands_only: bool,
+    /// Start a new run from these weights (a model.bpk of the same network, e.g. the shipped
+    /// one, to fine-tune it on more data) with a fresh optimiser; a run that resumes ignores it.
+    #[arg(long, value_name = "FILE")]
+    pub init: Option<PathBuf>,
 }
 
 /// `modalforge predictor ...`.
@@ -214,6 +219,7 @@ pub fn train_command(args: &TrainArgs) -> Result<String, CliError> {
         validate: args.validate,
         seed: args.seed,
         bands_only: args.bands_only,
+        init: args.init.clone(),
     };
     if !(args.learning_rate.is_finite() && args.learning_rate > 0.0 && args.learning_rate < 1.0) {
         return Err(CliError::Option(format!(
