@@ -1,6 +1,6 @@
 //! Operations on voxel grids: booleans, hollowing, face-connected components.
 
-use super::VoxelGrid;
+use super::{FillLookup, VoxelFill, VoxelGrid};
 use std::collections::VecDeque;
 
 /// The six face neighbours.
@@ -172,14 +172,44 @@ pub fn resampled(grid: &VoxelGrid, side: usize) -> Option<VoxelGrid> {
     let s = side as f64 / longest as f64;
     let new_dims = dims.map(|d| ((d as f64 * s).round() as usize).clamp(1, side));
     let mut out = VoxelGrid::new(new_dims, grid.voxel_size_m() / s).ok()?;
-    for z in 0..new_dims[2] {
-        for y in 0..new_dims[1] {
-            for x in 0..new_dims[0] {
-                let src = [x, y, z].map(|v| ((v as f64 + 0.5) / s).floor() as isize);
-                out.set_fill(x, y, z, grid.fill_at(src[0], src[1], src[2]));
+    // The source coordinate of each new row, column and layer, once (a source outside the
+    // grid is empty); the partial fills are read through an index and written in index order,
+    // so the whole is one pass (it was a map lookup and insert per voxel: ~1 ms at 32^3).
+    let dims_in = grid.dims();
+    let source = |a: usize| -> Vec<Option<usize>> {
+        (0..new_dims[a])
+            .map(|v| {
+                let c = ((v as f64 + 0.5) / s).floor();
+                (c >= 0.0 && (c as usize) < dims_in[a]).then_some(c as usize)
+            })
+            .collect()
+    };
+    let [sx, sy, sz] = [source(0), source(1), source(2)];
+    let partial_of = FillLookup::new(grid);
+    let mut partial = Vec::new();
+    let mut i = 0;
+    for z in &sz {
+        for y in &sy {
+            for x in &sx {
+                if let (Some(x), Some(y), Some(z)) = (x, y, z) {
+                    match partial_of.fill_at(*x as isize, *y as isize, *z as isize) {
+                        // As `set_fill` stores them: a full partial is full, an empty one empty.
+                        VoxelFill::Partial(f) if f.0.iter().all(|&v| v == 0) => {}
+                        VoxelFill::Empty => {}
+                        VoxelFill::Full => out.occupied[i] = true,
+                        VoxelFill::Partial(f) if f.is_full() => out.occupied[i] = true,
+                        VoxelFill::Partial(f) => {
+                            out.occupied[i] = true;
+                            partial.push((i, f));
+                        }
+                    }
+                }
+                i += 1;
             }
         }
     }
+    // In index order already: the map is built in bulk.
+    out.partial = partial.into_iter().collect();
     (out.count() > 0).then_some(out)
 }
 
@@ -284,6 +314,43 @@ mod tests {
         assert!(sphere
             .partial_voxels()
             .all(|(i, f)| shell.subcell_fill(i) == Some(f)));
+    }
+
+    #[test]
+    fn resampling_takes_each_new_voxel_from_the_old_one_its_centre_falls_in() {
+        // The definition, voxel by voxel through the grid's own accessors, against the one
+        // pass: a smooth sphere (partial voxels) up to 32 and down to 5, a bar whose sides
+        // round differently, equal (`VoxelGrid`'s own equality: occupancy, fills, edge).
+        let by_definition = |grid: &VoxelGrid, side: usize| {
+            let longest = grid.dims().into_iter().max().unwrap();
+            let s = side as f64 / longest as f64;
+            let dims = grid
+                .dims()
+                .map(|d| ((d as f64 * s).round() as usize).clamp(1, side));
+            let mut out = VoxelGrid::new(dims, grid.voxel_size_m() / s).unwrap();
+            for z in 0..dims[2] {
+                for y in 0..dims[1] {
+                    for x in 0..dims[0] {
+                        let src = [x, y, z].map(|v| ((v as f64 + 0.5) / s).floor() as isize);
+                        out.set_fill(x, y, z, grid.fill_at(src[0], src[1], src[2]));
+                    }
+                }
+            }
+            out
+        };
+        let sphere = crate::shape::primitives::Primitive::Sphere { diameter: 12.0 }
+            .rasterize(1.0, 0.01)
+            .unwrap();
+        assert!(!sphere.is_binary());
+        let bar = VoxelGrid::from_fn([7, 3, 2], 0.01, |x, y, _| {
+            !((x + y) as usize).is_multiple_of(3)
+        })
+        .unwrap();
+        for (grid, side) in [(&sphere, 32), (&sphere, 5), (&bar, 16), (&bar, 4)] {
+            let fast = resampled(grid, side).unwrap();
+            assert_eq!(fast, by_definition(grid, side), "side {side}");
+            assert!(!fast.is_binary() || grid.is_binary());
+        }
     }
 
     #[test]
