@@ -10,21 +10,22 @@ use modalforge::predictor::{metrics, Predictor, SHIPPED_LABEL_ELEMENT};
 /// Held-out objects scored (a plate with holes, a handled cup, alternately).
 const OBJECTS: usize = 4;
 /// Bounds on the four objects' figures. The shipped weights, band network and pitch index
-/// measure recall 61.2 %, precision 64.0 %, amplitude MSE 0.105 and a median pitch error of
+/// measure recall 56.1 %, precision 68.4 %, amplitude MSE 0.118 and a median pitch error of
 /// 44.6 cents on them (`modalforge predictor eval --weights assets/predictor/modenet.bpk
 /// --band-weights assets/predictor/bandnet.bpk` on a `modalforge dataset --count 1 --held-out
-/// 4 --seed 1 --element hex27x2`, masks at `MASK_LOGIT_THRESHOLD`; the band centres 45.3
-/// cents; stop 76's predictor, the cell network's own presence: 56.1 %, 70.3 %, 0.107). The
-/// mask and amplitude bounds sit a fifth away. The plates' holes go through them since stop
-/// 76, so no indexed shape is a near twin of these four and their bands play at the network's
-/// frequencies: the pitch bound is the band centres' median plus a little, which bands played
-/// off their places (a decode or pitch index fault) exceed; the computation itself is
-/// deterministic. A regression of the weights, the band network, the input layout, the
-/// decode, the threshold or the pitch index fails them. (These are interim figures, short of
-/// the goals: assets/predictor/README.md.)
-const RECALL_BOUND: f64 = 0.49;
-const PRECISION_BOUND: f64 = 0.51;
-const MSE_BOUND: f64 = 0.126;
+/// 4 --seed 1 --element hex27x2`, masks at `MASK_LOGIT_THRESHOLD` with the pitch index's
+/// presence shift; the band centres 45.3 cents; stop 77's band network and operating point:
+/// 61.2 %, 64.0 %, 0.105; stop 76's predictor, the cell network's own presence: 56.1 %,
+/// 70.3 %, 0.107). The mask and amplitude bounds sit a fifth away. The plates' holes go
+/// through them since stop 76, so no indexed shape is a near twin of these four and their
+/// bands play at the network's frequencies: the pitch bound is the band centres' median plus
+/// a little, which bands played off their places (a decode or pitch index fault) exceed; the
+/// computation itself is deterministic. A regression of the weights, the band network, the
+/// input layout, the decode, the threshold or the pitch index fails them. (These are interim
+/// figures, short of the goals: assets/predictor/README.md.)
+const RECALL_BOUND: f64 = 0.44;
+const PRECISION_BOUND: f64 = 0.54;
+const MSE_BOUND: f64 = 0.141;
 const CENTS_BOUND: f64 = 46.0;
 
 #[test]
