@@ -528,7 +528,7 @@ mod tests {
         let (before, after) = (own_bar.cell_outputs(cell), bar_p.cell_outputs(cell));
         assert!((after[3] - before[3] - NEIGHBOUR_PRESENCE_LOGIT).abs() < 1e-5);
         assert!((after[4] - before[4] + NEIGHBOUR_PRESENCE_LOGIT).abs() < 1e-5);
-        // The lean itself, at a shift of 1 (the shipped one is 0 since stop 77): up in the
+        // The lean itself, at a shift of 1 (whatever the shipped one is): up in the
         // band the twin fills, down in one it does not.
         let mut leaned = own_bar.clone();
         leaned.bias_bands(&presence_bias(&index.query(&bar), 1.0));

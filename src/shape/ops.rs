@@ -175,12 +175,11 @@ pub fn resampled(grid: &VoxelGrid, side: usize) -> Option<VoxelGrid> {
     // The source coordinate of each new row, column and layer, once (a source outside the
     // grid is empty); the partial fills are read through an index and written in index order,
     // so the whole is one pass (it was a map lookup and insert per voxel: ~1 ms at 32^3).
-    let dims_in = grid.dims();
     let source = |a: usize| -> Vec<Option<usize>> {
         (0..new_dims[a])
             .map(|v| {
                 let c = ((v as f64 + 0.5) / s).floor();
-                (c >= 0.0 && (c as usize) < dims_in[a]).then_some(c as usize)
+                (c >= 0.0 && (c as usize) < dims[a]).then_some(c as usize)
             })
             .collect()
     };
