@@ -506,6 +506,9 @@ pub fn train(options: &TrainOptions) -> Result<RunState, TrainError> {
     }
     let mut held: Vec<Record> = Vec::new();
     for data in &options.data {
+        if held.len() >= options.validate {
+            break; // enough scored objects: the other held-out splits are not read
+        }
         held.extend(
             read_split(data, true)?
                 .iter()
